@@ -1,0 +1,184 @@
+//! Reads a scene (glTF 2.0 `.gltf`/`.glb`, or OBJ + MTL) into world-space polygons
+//! with ideal-diffuse materials: the input of the radiosity method (Goral et al. 1984, §3,
+//! "the first module reads a description of a polygonal environment").
+//!
+//! Public API: [`load`] → [`Scene`]. A [`Scene`] holds
+//! - [`Polygon`]s in world space (every node transform applied, f64), each planar and convex,
+//!   3 or 4 vertices counter-clockwise seen from the side it faces, tagged with its [`Origin`];
+//! - [`Material`]s with reflectance ρ and emission e per colour band (RGB);
+//! - a [`Layout`]: the input's node hierarchy, names and transforms, so the exporter can
+//!   write the baked scene back with the same structure;
+//! - [`ImportStats`] and human-readable warnings for everything that was dropped or changed.
+
+use glam::{DMat4, DVec3};
+use std::path::{Path, PathBuf};
+
+/// Where a polygon came from, so its results can be written back.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Origin {
+    /// Index into [`Layout::nodes`] (the instance: a mesh used by two nodes is baked twice).
+    pub node: usize,
+    /// Index into [`Layout::meshes`].
+    pub mesh: usize,
+    /// Index of the primitive inside that mesh.
+    pub primitive: usize,
+    /// Index of the first source face (triangle, or OBJ face) of the primitive that this polygon
+    /// was built from (a merged quad is built from faces `face` and one other).
+    pub face: usize,
+    /// Which side of a `doubleSided` surface this polygon is. Single-sided faces are `Front`.
+    pub side: Side,
+}
+
+/// The side of a surface. A `doubleSided` material yields two polygons per face: the front one
+/// (the input's winding and normal) and a back one (reversed winding, opposite normal).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Side {
+    Front,
+    Back,
+}
+
+/// A planar convex polygon in world space.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Polygon {
+    /// 3 or 4 vertices, counter-clockwise when seen from the side the normal points to.
+    pub vertices: Vec<DVec3>,
+    /// Unit normal, pointing into the half-space the surface emits and receives light from.
+    pub normal: DVec3,
+    /// Index into [`Scene::materials`].
+    pub material: usize,
+    pub origin: Origin,
+}
+
+/// An ideal diffuse (Lambertian) material, per RGB band.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    pub name: Option<String>,
+    /// Reflectance ρ in [0, 1] per band (glTF `baseColorFactor` rgb, MTL `Kd`).
+    pub rho: [f64; 3],
+    /// Emitted intensity e ≥ 0 per band: the e of the paper's eq. 7, in the same units as every
+    /// radiosity b (glTF `emissiveFactor` × `KHR_materials_emissive_strength`, MTL `Ke`).
+    pub emission: [f64; 3],
+    /// Both sides of every face are surfaces (glTF `doubleSided`).
+    pub double_sided: bool,
+}
+
+/// A node of the input hierarchy, kept so the output has the same structure.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Node {
+    pub name: Option<String>,
+    /// The node's local transform exactly as the input gave it.
+    pub transform: Transform,
+    pub children: Vec<usize>,
+    /// Index into [`Layout::meshes`].
+    pub mesh: Option<usize>,
+    /// Parent-to-world composed transform (f64) used to place this node's polygons.
+    pub world: DMat4,
+}
+
+/// A node's local transform, as written in the input.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Transform {
+    /// Column-major 4×4 matrix.
+    Matrix([f32; 16]),
+    Trs {
+        translation: [f32; 3],
+        /// Unit quaternion x, y, z, w.
+        rotation: [f32; 4],
+        scale: [f32; 3],
+    },
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mesh {
+    pub name: Option<String>,
+    pub primitives: Vec<Primitive>,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Primitive {
+    /// Index into [`Scene::materials`].
+    pub material: usize,
+    /// False for primitives that were skipped (points, lines, or nothing left after cleaning).
+    pub baked: bool,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneRoots {
+    pub name: Option<String>,
+    pub nodes: Vec<usize>,
+}
+
+/// The input's structure: nodes, meshes and scenes.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Layout {
+    pub nodes: Vec<Node>,
+    pub meshes: Vec<Mesh>,
+    pub scenes: Vec<SceneRoots>,
+    /// The default scene (glTF `scene`), if any.
+    pub scene: Option<usize>,
+}
+
+/// Counts of what was dropped or changed on import.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ImportStats {
+    /// Source faces read (triangles and OBJ faces), before cleaning.
+    pub faces_read: usize,
+    /// Pairs of triangles merged back into a planar convex quad.
+    pub quads_merged: usize,
+    /// Faces dropped for zero area or repeated vertices.
+    pub degenerate_dropped: usize,
+    /// Primitives skipped because their mode is points or lines.
+    pub primitives_skipped: usize,
+    /// Polygons with more than 4 vertices split into triangles/quads.
+    pub ngons_split: usize,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    pub polygons: Vec<Polygon>,
+    pub materials: Vec<Material>,
+    pub layout: Layout,
+    pub stats: ImportStats,
+    /// One line per thing the user should know about (dropped faces, skipped primitives).
+    pub warnings: Vec<String>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ImportError {
+    #[error("cannot read {path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("unsupported file extension (expected .gltf, .glb or .obj)")]
+    UnsupportedExtension,
+    #[error("malformed glTF: {0}")]
+    Gltf(String),
+    #[error("malformed OBJ/MTL: {0}")]
+    Obj(String),
+    /// A value a user's file controls is out of range; names the mesh and polygon.
+    #[error("{what}: {problem}")]
+    InvalidValue { what: String, problem: String },
+    #[error("nothing left to bake: the scene has no polygons with area")]
+    Empty,
+}
+
+/// Reads `path` (`.gltf`, `.glb` or `.obj`, by extension, case-insensitive).
+pub fn load(path: &Path) -> Result<Scene, ImportError> {
+    let _ = path;
+    todo!("importer")
+}
+
+/// The scene's world-space bounding box (min, max) over all polygon vertices.
+pub fn bounds(polygons: &[Polygon]) -> (DVec3, DVec3) {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for p in polygons {
+        for v in &p.vertices {
+            lo = lo.min(*v);
+            hi = hi.max(*v);
+        }
+    }
+    (lo, hi)
+}
