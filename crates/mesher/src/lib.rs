@@ -58,3 +58,322 @@ pub struct ElementMesh {
     /// One per input polygon, in polygon order.
     pub patches: Vec<PatchGrid>,
 }
+
+#[derive(Debug, thiserror::Error)]
+pub enum MeshError {
+    #[error("invalid subdivision: {0}")]
+    InvalidSubdivision(String),
+    #[error("polygon {polygon} has {sides} vertices; the mesher takes triangles and quads")]
+    UnsupportedPolygon { polygon: usize, sides: usize },
+    #[error("subdivision would create {0} elements, more than the mesher's limit of {max}", max = MAX_ELEMENTS)]
+    TooManyElements(u64),
+}
+
+/// Hard cap on the element count (indices are `u32`).
+pub const MAX_ELEMENTS: u64 = 1 << 30;
+
+/// Elements per scene-size unit of the default subdivision: the default element size is the
+/// scene's bounding-box diagonal divided by this (the paper's cube: 10×10 elements per wall).
+pub const DEFAULT_ELEMENTS_PER_DIAGONAL: f64 = 16.0;
+
+/// The default `--max-element-size`: the scene's bounding-box diagonal / 16.
+pub fn default_max_element_size(polygons: &[Polygon]) -> f64 {
+    let (lo, hi) = importer::bounds(polygons);
+    (hi - lo).length() / DEFAULT_ELEMENTS_PER_DIAGONAL
+}
+
+/// Subdivides every polygon into elements.
+///
+/// Quads (v0 v1 v2 v3, counter-clockwise) get an nu×nv bilinear grid, u along v0→v1 and v
+/// along v0→v3; triangles get the n² regular split by lines parallel to their edges. With
+/// [`Subdivision::Count`] n = nu = nv = N; with [`Subdivision::MaxSize`] each direction gets
+/// the fewest divisions that keep every element edge ≤ L.
+pub fn mesh(polygons: &[Polygon], subdivision: Subdivision) -> Result<ElementMesh, MeshError> {
+    match subdivision {
+        Subdivision::Count(0) => {
+            return Err(MeshError::InvalidSubdivision(
+                "--subdiv must be at least 1".into(),
+            ))
+        }
+        Subdivision::MaxSize(l) if !(l.is_finite() && l > 0.0) => {
+            return Err(MeshError::InvalidSubdivision(format!(
+                "--max-element-size must be a positive number, got {l}"
+            )))
+        }
+        _ => {}
+    }
+    // Count first so a huge request fails before allocating.
+    let mut total: u64 = 0;
+    let mut plan = Vec::with_capacity(polygons.len());
+    for (index, p) in polygons.iter().enumerate() {
+        let (nu, nv) = divisions(p, subdivision, index)?;
+        total += if p.vertices.len() == 4 {
+            nu * nv
+        } else {
+            nu * nu
+        };
+        if total > MAX_ELEMENTS {
+            return Err(MeshError::TooManyElements(total));
+        }
+        plan.push((nu as u32, nv as u32));
+    }
+    let mut out = ElementMesh::default();
+    out.elements.reserve(total as usize);
+    for (index, (p, &(nu, nv))) in polygons.iter().zip(&plan).enumerate() {
+        let v0 = out.vertices.len() as u32;
+        let e0 = out.elements.len() as u32;
+        if p.vertices.len() == 4 {
+            quad_grid(&mut out, p, index as u32, nu, nv);
+        } else {
+            triangle_grid(&mut out, p, index as u32, nu);
+        }
+        out.patches.push(PatchGrid {
+            vertices: v0..out.vertices.len() as u32,
+            elements: e0..out.elements.len() as u32,
+        });
+    }
+    Ok(out)
+}
+
+fn divisions(p: &Polygon, s: Subdivision, index: usize) -> Result<(u64, u64), MeshError> {
+    let v = &p.vertices;
+    let steps = |len: f64, l: f64| ((len / l).ceil() as u64).max(1);
+    match (v.len(), s) {
+        (3 | 4, Subdivision::Count(n)) => Ok((n as u64, n as u64)),
+        (4, Subdivision::MaxSize(l)) => {
+            let u = v[0].distance(v[1]).max(v[3].distance(v[2]));
+            let w = v[0].distance(v[3]).max(v[1].distance(v[2]));
+            Ok((steps(u, l), steps(w, l)))
+        }
+        (3, Subdivision::MaxSize(l)) => {
+            let e = v[0]
+                .distance(v[1])
+                .max(v[1].distance(v[2]))
+                .max(v[2].distance(v[0]));
+            let n = steps(e, l);
+            Ok((n, n))
+        }
+        (sides, _) => Err(MeshError::UnsupportedPolygon {
+            polygon: index,
+            sides,
+        }),
+    }
+}
+
+fn quad_grid(out: &mut ElementMesh, p: &Polygon, polygon: u32, nu: u32, nv: u32) {
+    let [a, b, c, d] = [p.vertices[0], p.vertices[1], p.vertices[2], p.vertices[3]];
+    let base = out.vertices.len() as u32;
+    for j in 0..=nv {
+        let t = j as f64 / nv as f64;
+        for i in 0..=nu {
+            let s = i as f64 / nu as f64;
+            // Bilinear map of the unit square onto the quad; exact at the corners.
+            let bottom = a.lerp(b, s);
+            let top = d.lerp(c, s);
+            out.vertices.push(bottom.lerp(top, t));
+        }
+    }
+    let id = |i: u32, j: u32| base + j * (nu + 1) + i;
+    for j in 0..nv {
+        for i in 0..nu {
+            let corners = [id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)];
+            out.elements
+                .push(element(&out.vertices, polygon, corners, 4, p.normal));
+        }
+    }
+}
+
+fn triangle_grid(out: &mut ElementMesh, p: &Polygon, polygon: u32, n: u32) {
+    let [a, b, c] = [p.vertices[0], p.vertices[1], p.vertices[2]];
+    let base = out.vertices.len() as u32;
+    // Row k (0..=n) holds n-k+1 vertices a + (i/n)(b-a) + (k/n)(c-a).
+    let mut row_start = Vec::with_capacity(n as usize + 1);
+    for k in 0..=n {
+        row_start.push(out.vertices.len() as u32 - base);
+        for i in 0..=(n - k) {
+            let (s, t) = (i as f64 / n as f64, k as f64 / n as f64);
+            out.vertices.push(a + (b - a) * s + (c - a) * t);
+        }
+    }
+    let id = |i: u32, k: u32| base + row_start[k as usize] + i;
+    for k in 0..n {
+        for i in 0..(n - k) {
+            let up = [id(i, k), id(i + 1, k), id(i, k + 1), id(i, k + 1)];
+            out.elements
+                .push(element(&out.vertices, polygon, up, 3, p.normal));
+            if i + 1 < n - k {
+                let down = [id(i + 1, k), id(i + 1, k + 1), id(i, k + 1), id(i, k + 1)];
+                out.elements
+                    .push(element(&out.vertices, polygon, down, 3, p.normal));
+            }
+        }
+    }
+}
+
+/// Area and area centroid of a planar convex polygon by a fan of triangles.
+fn element(
+    vertices: &[DVec3],
+    polygon: u32,
+    corners: [u32; 4],
+    sides: u8,
+    normal: DVec3,
+) -> Element {
+    let v = |k: usize| vertices[corners[k] as usize];
+    let mut area = 0.0;
+    let mut moment = DVec3::ZERO;
+    for k in 1..sides as usize - 1 {
+        let a = (v(k) - v(0)).cross(v(k + 1) - v(0)).dot(normal) * 0.5;
+        area += a;
+        moment += (v(0) + v(k) + v(k + 1)) * (a / 3.0);
+    }
+    Element {
+        polygon,
+        corners,
+        sides,
+        area,
+        centroid: moment / area,
+        normal,
+    }
+}
+
+impl ElementMesh {
+    /// Area-weighted average, at each vertex, of the values of the elements of the same
+    /// polygon that touch it: the paper's linear smoothing of element intensities (§3, §4).
+    /// Returns one value per entry of [`ElementMesh::vertices`].
+    pub fn smooth(&self, element_values: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        let mut sum = vec![[0.0f64; 3]; self.vertices.len()];
+        let mut weight = vec![0.0f64; self.vertices.len()];
+        for (e, value) in self.elements.iter().zip(element_values) {
+            for &c in e.corner_indices() {
+                let c = c as usize;
+                weight[c] += e.area;
+                for band in 0..3 {
+                    sum[c][band] += e.area * value[band];
+                }
+            }
+        }
+        sum.iter()
+            .zip(&weight)
+            .map(|(s, &w)| {
+                if w > 0.0 {
+                    [s[0] / w, s[1] / w, s[2] / w]
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use importer::{Origin, Side};
+
+    fn polygon(vertices: Vec<DVec3>) -> Polygon {
+        let n = (vertices[1] - vertices[0])
+            .cross(vertices[2] - vertices[0])
+            .normalize();
+        let origin = Origin {
+            node: 0,
+            mesh: 0,
+            primitive: 0,
+            face: 0,
+            side: Side::Front,
+        };
+        Polygon {
+            vertices,
+            normal: n,
+            material: 0,
+            origin,
+        }
+    }
+
+    fn quad() -> Polygon {
+        // A non-rectangular convex quad (trapezoid), area 1.5 in the plane z = 0.
+        polygon(vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(1.5, 1.0, 0.0),
+            DVec3::new(0.5, 1.0, 0.0),
+        ])
+    }
+
+    fn triangle() -> Polygon {
+        polygon(vec![
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::new(3.0, 0.0, 1.0),
+            DVec3::new(0.0, 2.0, 1.0),
+        ])
+    }
+
+    #[test]
+    fn counts_and_areas_add_up() {
+        for n in 1..=7 {
+            let m = mesh(&[quad(), triangle()], Subdivision::Count(n)).unwrap();
+            let n = n as usize;
+            assert_eq!(m.patches[0].elements.len(), n * n);
+            assert_eq!(m.patches[1].elements.len(), n * n);
+            assert_eq!(m.patches[0].vertices.len(), (n + 1) * (n + 1));
+            assert_eq!(m.patches[1].vertices.len(), (n + 1) * (n + 2) / 2);
+            let area = |r: Range<u32>| -> f64 {
+                m.elements[r.start as usize..r.end as usize]
+                    .iter()
+                    .map(|e| e.area)
+                    .sum()
+            };
+            assert!((area(m.patches[0].elements.clone()) - 1.5).abs() < 1e-12);
+            assert!((area(m.patches[1].elements.clone()) - 3.0).abs() < 1e-12);
+            assert!(m.elements.iter().all(|e| e.area > 0.0));
+        }
+    }
+
+    #[test]
+    fn centroids_are_area_centroids() {
+        let m = mesh(&[quad()], Subdivision::Count(1)).unwrap();
+        // Trapezoid with parallel sides 2 (y=0) and 1 (y=1): centroid y = (2·1 + 1)/(3·3) ... = h(a+2b)/(3(a+b)).
+        let y = 1.0 * (2.0 + 2.0 * 1.0) / (3.0 * 3.0);
+        assert!((m.elements[0].centroid - DVec3::new(1.0, y, 0.0)).length() < 1e-12);
+    }
+
+    #[test]
+    fn max_size_bounds_every_edge() {
+        let m = mesh(&[quad(), triangle()], Subdivision::MaxSize(0.3)).unwrap();
+        for e in &m.elements {
+            let c = e.corner_indices();
+            for k in 0..c.len() {
+                let (a, b) = (
+                    m.vertices[c[k] as usize],
+                    m.vertices[c[(k + 1) % c.len()] as usize],
+                );
+                assert!(a.distance(b) <= 0.3 + 1e-12);
+            }
+        }
+        assert_eq!(m.patches[0].elements.len(), 7 * 4);
+    }
+
+    #[test]
+    fn smoothing_is_the_area_weighted_average() {
+        let m = mesh(&[quad()], Subdivision::Count(2)).unwrap();
+        let values: Vec<[f64; 3]> = (0..4).map(|k| [k as f64, 1.0, 0.0]).collect();
+        let s = m.smooth(&values);
+        // Centre vertex (1,1) of the 3×3 grid touches all four elements.
+        let a: Vec<f64> = m.elements.iter().map(|e| e.area).collect();
+        let expect = (0..4).map(|k| a[k] * k as f64).sum::<f64>() / a.iter().sum::<f64>();
+        assert!((s[4][0] - expect).abs() < 1e-12);
+        assert!((s[4][1] - 1.0).abs() < 1e-12);
+        // A corner vertex touches one element only.
+        assert_eq!(s[0][0], 0.0);
+        assert_eq!(s[8][0], 3.0);
+    }
+
+    #[test]
+    fn rejects_bad_requests() {
+        assert!(mesh(&[quad()], Subdivision::Count(0)).is_err());
+        assert!(mesh(&[quad()], Subdivision::MaxSize(f64::NAN)).is_err());
+        assert!(matches!(
+            mesh(&[quad()], Subdivision::MaxSize(1e-9)),
+            Err(MeshError::TooManyElements(_))
+        ));
+    }
+}
