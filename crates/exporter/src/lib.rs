@@ -1,1 +1,129 @@
+//! Writes the result of a bake: the baked glTF (`.gltf` + `.bin`, or `.glb`) and the bake
+//! report (JSON). The last module of the pipeline (Goral et al. 1984, §3: the computed
+//! intensities are displayed), here written out for any glTF viewer.
+//!
+//! Public API: [`write_gltf`] with a [`Bake`]; [`report::write_report`] with a
+//! [`report::Report`].
+//!
+//! The baked glTF keeps the input's nodes (same order and indices), names, transforms,
+//! children and scenes. Meshes are written un-instanced: every node whose mesh has baked
+//! elements gets its own mesh, whose primitives hold the element mesh of that instance
+//! (positions and normals in the node's local space), the clamped colour (`COLOR_0`) and the
+//! unclamped radiosity (`_RADIOSITY`), with one shared `KHR_materials_unlit` material.
 
+mod document;
+mod files;
+mod geometry;
+pub mod report;
+
+use std::path::{Path, PathBuf};
+
+/// How radiosity is shown across an element.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Shading {
+    /// Vertex values are area-weighted averages of the elements around each vertex (the paper's
+    /// linear smoothing), interpolated across elements.
+    Smooth,
+    /// Each element constant (its vertices are duplicated per element).
+    Flat,
+}
+
+/// Everything [`write_gltf`] needs.
+#[derive(Clone, Copy, Debug)]
+pub struct Bake<'a> {
+    pub scene: &'a importer::Scene,
+    pub mesh: &'a mesher::ElementMesh,
+    /// Radiosity b per element (unclamped, linear, same units as emission).
+    pub radiosity: &'a [[f64; 3]],
+    pub shading: Shading,
+    /// `COLOR_0 = clamp(value × exposure, 0, 1)`.
+    pub exposure: f64,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    #[error("cannot write {path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("unsupported output extension for {0} (expected .gltf or .glb)")]
+    UnsupportedExtension(PathBuf),
+    /// The scene, element mesh and radiosity do not fit together (a bug upstream).
+    #[error("invalid bake data: {0}")]
+    InvalidData(String),
+    #[error("cannot encode {what}: {message}")]
+    Encode { what: &'static str, message: String },
+}
+
+/// Writes the baked scene to `path`: `.gltf` (JSON plus `<stem>.bin` beside it) or `.glb`,
+/// chosen by the extension (case-insensitive). Files are written to temporaries in the same
+/// directory and renamed into place; on error no partial output is left.
+pub fn write_gltf(path: &Path, bake: &Bake) -> Result<(), ExportError> {
+    let format = files::OutputFormat::from_path(path)?;
+    let primitives = geometry::build(bake)?;
+    match format {
+        files::OutputFormat::Gltf => {
+            let bin_path = files::bin_path_for(path)?;
+            let bin_uri = files::uri_for_file_name(&bin_path);
+            let (root, bin) = document::build(&bake.scene.layout, &primitives, Some(bin_uri))?;
+            let json = encode_json(&root)?;
+            if bin.is_empty() {
+                files::write_atomically(path, &json)
+            } else {
+                files::write_pair_atomically(&bin_path, &bin, path, &json)
+            }
+        }
+        files::OutputFormat::Glb => {
+            let (root, bin) = document::build(&bake.scene.layout, &primitives, None)?;
+            let glb = encode_glb(&root, &bin)?;
+            files::write_atomically(path, &glb)
+        }
+    }
+}
+
+fn encode_json(root: &gltf::json::Root) -> Result<Vec<u8>, ExportError> {
+    let mut json = Vec::new();
+    root.to_writer_pretty(&mut json)
+        .map_err(|e| ExportError::Encode {
+            what: "glTF JSON",
+            message: e.to_string(),
+        })?;
+    Ok(json)
+}
+
+/// GLB lengths are u32; leave room for the header, chunk headers and padding.
+const GLB_MAX_PAYLOAD: usize = u32::MAX as usize - 64;
+
+fn encode_glb(root: &gltf::json::Root, bin: &[u8]) -> Result<Vec<u8>, ExportError> {
+    let json = root.to_vec().map_err(|e| ExportError::Encode {
+        what: "glTF JSON",
+        message: e.to_string(),
+    })?;
+    if json.len() + bin.len() > GLB_MAX_PAYLOAD {
+        return Err(ExportError::Encode {
+            what: "GLB",
+            message: "the scene is too large for a GLB file (4 GiB); write .gltf instead".into(),
+        });
+    }
+    let bin = if bin.is_empty() {
+        None
+    } else {
+        Some(bin.into())
+    };
+    let glb = gltf::binary::Glb {
+        header: gltf::binary::Header {
+            magic: *b"glTF",
+            version: 2,
+            // `to_writer` computes the real length.
+            length: 0,
+        },
+        json: json.into(),
+        bin,
+    };
+    glb.to_vec().map_err(|e| ExportError::Encode {
+        what: "GLB",
+        message: e.to_string(),
+    })
+}

@@ -1,0 +1,258 @@
+//! The bake report: a JSON record of what was baked (inputs, options, counts, timings,
+//! solver diagnostics, warnings) and the per-element results in world space, for tests and
+//! for users who want the numbers rather than the picture.
+//!
+//! Keys appear in struct field order; floats are written so they read back exactly.
+//!
+//! Typical use by the CLI:
+//! ```text
+//! let mut report = Report::new(input, &scene, &mesh, &radiosity, solver)?;
+//! report.options = serde_json::to_value(&options)?;
+//! report.counts.pairs_evaluated = pairs;
+//! report.timings.insert("solve".into(), seconds);
+//! write_report(path, &report)?;
+//! ```
+
+use crate::{files, ExportError};
+use importer::{Scene, Side};
+use mesher::ElementMesh;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The version of this report's layout.
+pub const SCHEMA_VERSION: u32 = 1;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    /// [`SCHEMA_VERSION`].
+    pub schema_version: u32,
+    /// The input file, as given.
+    pub input: String,
+    /// The options the bake ran with; owned by the CLI.
+    pub options: serde_json::Value,
+    pub counts: Counts,
+    /// Seconds per stage, by stage name.
+    pub timings: BTreeMap<String, f64>,
+    pub solver: SolverInfo,
+    pub warnings: Vec<String>,
+    pub polygons: Vec<PolygonEntry>,
+    pub elements: Vec<ElementEntry>,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Counts {
+    pub polygons: usize,
+    pub elements: usize,
+    /// Element pairs whose form factor was computed.
+    pub pairs_evaluated: u64,
+    pub degenerate_dropped: usize,
+    pub quads_merged: usize,
+    pub primitives_skipped: usize,
+    pub ngons_split: usize,
+    pub faces_read: usize,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SolverMethod {
+    /// Solved the linear system directly.
+    Direct,
+    /// A fixed number of light bounces (Jacobi-style gathering).
+    Bounces,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SolverInfo {
+    pub method: SolverMethod,
+    /// The bounce count for [`SolverMethod::Bounces`].
+    pub bounces: Option<u32>,
+    /// Residual of the solution per band.
+    pub residual: [f64; 3],
+    /// Whether each band's residual is relative (to the emission) rather than absolute.
+    pub residual_relative: [bool; 3],
+    /// Matrix factorizations performed.
+    pub factorizations: u32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SideName {
+    Front,
+    Back,
+}
+
+impl From<Side> for SideName {
+    fn from(side: Side) -> Self {
+        match side {
+            Side::Front => SideName::Front,
+            Side::Back => SideName::Back,
+        }
+    }
+}
+
+/// Where one scene polygon came from (its [`importer::Origin`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PolygonEntry {
+    pub node: usize,
+    pub mesh: usize,
+    pub primitive: usize,
+    pub face: usize,
+    pub side: SideName,
+}
+
+/// One element's geometry and result, in world space.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ElementEntry {
+    /// Index into [`Report::polygons`].
+    pub polygon: u32,
+    /// Area centroid.
+    pub centroid: [f64; 3],
+    /// Unit normal.
+    pub normal: [f64; 3],
+    pub area: f64,
+    /// Reflectance of the element's material.
+    pub rho: [f64; 3],
+    /// Emission of the element's material.
+    pub e: [f64; 3],
+    /// Radiosity (unclamped, before exposure).
+    pub b: [f64; 3],
+}
+
+impl Report {
+    /// A report with the scene's counts, warnings, polygons and elements filled in.
+    /// `options` is `{}`, `timings` is empty and `counts.pairs_evaluated` is 0: the caller
+    /// sets them.
+    pub fn new(
+        input: &Path,
+        scene: &Scene,
+        mesh: &ElementMesh,
+        radiosity: &[[f64; 3]],
+        solver: SolverInfo,
+    ) -> Result<Report, ExportError> {
+        Ok(Report {
+            schema_version: SCHEMA_VERSION,
+            input: input.to_string_lossy().into_owned(),
+            options: serde_json::Value::Object(serde_json::Map::new()),
+            counts: Counts::new(scene, mesh, 0),
+            timings: BTreeMap::new(),
+            solver,
+            warnings: scene.warnings.clone(),
+            polygons: Report::polygons_from(scene),
+            elements: Report::elements_from(scene, mesh, radiosity)?,
+        })
+    }
+
+    /// One entry per scene polygon, in polygon order.
+    pub fn polygons_from(scene: &Scene) -> Vec<PolygonEntry> {
+        scene
+            .polygons
+            .iter()
+            .map(|polygon| PolygonEntry {
+                node: polygon.origin.node,
+                mesh: polygon.origin.mesh,
+                primitive: polygon.origin.primitive,
+                face: polygon.origin.face,
+                side: polygon.origin.side.into(),
+            })
+            .collect()
+    }
+
+    /// One entry per element, in element order, with ρ and e from the polygon's material and
+    /// b from `radiosity` (one value per element).
+    pub fn elements_from(
+        scene: &Scene,
+        mesh: &ElementMesh,
+        radiosity: &[[f64; 3]],
+    ) -> Result<Vec<ElementEntry>, ExportError> {
+        if radiosity.len() != mesh.elements.len() {
+            return Err(ExportError::InvalidData(format!(
+                "{} radiosity values for {} elements",
+                radiosity.len(),
+                mesh.elements.len()
+            )));
+        }
+        mesh.elements
+            .iter()
+            .zip(radiosity)
+            .enumerate()
+            .map(|(i, (element, b))| {
+                let material = scene
+                    .polygons
+                    .get(element.polygon as usize)
+                    .and_then(|polygon| scene.materials.get(polygon.material))
+                    .ok_or_else(|| {
+                        ExportError::InvalidData(format!(
+                            "element {i}: polygon {} or its material is missing",
+                            element.polygon
+                        ))
+                    })?;
+                Ok(ElementEntry {
+                    polygon: element.polygon,
+                    centroid: element.centroid.to_array(),
+                    normal: element.normal.to_array(),
+                    area: element.area,
+                    rho: material.rho,
+                    e: material.emission,
+                    b: *b,
+                })
+            })
+            .collect()
+    }
+}
+
+impl Counts {
+    /// Polygon and element counts of the mesh, the importer's statistics, and
+    /// `pairs_evaluated` from the form-factor stage.
+    pub fn new(scene: &Scene, mesh: &ElementMesh, pairs_evaluated: u64) -> Counts {
+        let stats = &scene.stats;
+        Counts {
+            polygons: scene.polygons.len(),
+            elements: mesh.elements.len(),
+            pairs_evaluated,
+            degenerate_dropped: stats.degenerate_dropped,
+            quads_merged: stats.quads_merged,
+            primitives_skipped: stats.primitives_skipped,
+            ngons_split: stats.ngons_split,
+            faces_read: stats.faces_read,
+        }
+    }
+}
+
+/// Writes `report` as pretty JSON to `path`, atomically (temporary file, then rename).
+pub fn write_report(path: &Path, report: &Report) -> Result<(), ExportError> {
+    let mut json = serde_json::to_vec_pretty(report).map_err(|e| ExportError::Encode {
+        what: "the bake report",
+        message: e.to_string(),
+    })?;
+    json.push(b'\n');
+    files::write_atomically(path, &json)
+}
+
+/// Reads a report written by [`write_report`].
+pub fn read_report(path: &Path) -> Result<Report, ReadReportError> {
+    let bytes = std::fs::read(path).map_err(|source| ReadReportError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    serde_json::from_slice(&bytes).map_err(|source| ReadReportError::Json {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ReadReportError {
+    #[error("cannot read {path}: {source}")]
+    Io {
+        path: std::path::PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path} is not a bake report: {source}")]
+    Json {
+        path: std::path::PathBuf,
+        #[source]
+        source: serde_json::Error,
+    },
+}

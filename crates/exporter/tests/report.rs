@@ -1,0 +1,161 @@
+//! The bake report: contents, key order, exact float round trip, atomic writes.
+
+mod common;
+
+use bake_exporter::report::{
+    read_report, write_report, Counts, Report, SideName, SolverInfo, SolverMethod,
+};
+use bake_exporter::ExportError;
+use common::{file_names, fixture};
+use std::path::Path;
+
+fn solver() -> SolverInfo {
+    SolverInfo {
+        method: SolverMethod::Bounces,
+        bounces: Some(8),
+        residual: [1.0e-9, 0.1 + 0.2, f64::MIN_POSITIVE],
+        residual_relative: [true, false, true],
+        factorizations: 0,
+    }
+}
+
+fn report() -> Report {
+    let mut fixture = fixture();
+    // Values whose shortest decimal form is long or extreme.
+    fixture.radiosity[0] = [1.0 / 3.0, 1e-300, 123_456_789.123_456_78];
+    fixture.radiosity[1] = [0.1 + 0.2, 5e-324, 2.0_f64.sqrt()];
+    let mut report = Report::new(
+        Path::new("scenes/cube.gltf"),
+        &fixture.scene,
+        &fixture.mesh,
+        &fixture.radiosity,
+        solver(),
+    )
+    .expect("a report");
+    report.options = serde_json::json!({"subdivision": 2, "exposure": 0.9});
+    report.counts.pairs_evaluated = 91;
+    report.timings.insert("import".into(), 0.001_25);
+    report.timings.insert("form_factors".into(), 1.0 / 7.0);
+    report
+}
+
+#[test]
+fn report_holds_the_scene_and_results() {
+    let fixture = fixture();
+    let report = report();
+    assert_eq!(report.schema_version, 1);
+    assert_eq!(report.input, "scenes/cube.gltf");
+    assert_eq!(
+        report.counts,
+        Counts {
+            polygons: 8,
+            elements: 14,
+            pairs_evaluated: 91,
+            degenerate_dropped: 1,
+            quads_merged: 4,
+            primitives_skipped: 1,
+            ngons_split: 0,
+            faces_read: 12,
+        }
+    );
+    assert_eq!(report.warnings, fixture.scene.warnings);
+    assert_eq!(report.polygons.len(), 8);
+    // Polygon 3 is the back side D of node 1's doubleSided quad.
+    let back = report.polygons[3];
+    assert_eq!(
+        (back.node, back.mesh, back.primitive, back.face),
+        (1, 0, 1, 0)
+    );
+    assert_eq!(back.side, SideName::Back);
+    assert_eq!(report.polygons[2].side, SideName::Front);
+
+    assert_eq!(report.elements.len(), 14);
+    for (entry, element) in report.elements.iter().zip(&fixture.mesh.elements) {
+        assert_eq!(entry.polygon, element.polygon);
+        assert_eq!(entry.centroid, element.centroid.to_array());
+        assert_eq!(entry.normal, element.normal.to_array());
+        assert_eq!(entry.area, element.area);
+        let material =
+            &fixture.scene.materials[fixture.scene.polygons[element.polygon as usize].material];
+        assert_eq!(entry.rho, material.rho);
+        assert_eq!(entry.e, material.emission);
+    }
+    // Elements 4 (triangle B, material 0) and 5 (quad C, material 1, emitting).
+    assert_eq!(report.elements[4].rho, [0.8, 0.5, 0.3]);
+    assert_eq!(report.elements[5].e, [1.0, 0.9, 0.8]);
+    assert_eq!(report.elements[2].b, fixture.radiosity[2]);
+    // Quad A's 2×2 elements are 1×1 squares.
+    // (node 1's f32 quaternion is unit only to ~1e-7)
+    assert!((report.elements[0].area - 1.0).abs() < 1e-6);
+}
+
+#[test]
+fn report_round_trips_exactly_with_keys_in_field_order() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let path = dir.path().join("report.json");
+    let report = report();
+    write_report(&path, &report).expect("write the report");
+    assert_eq!(
+        file_names(dir.path()),
+        vec!["report.json"],
+        "no temporaries left"
+    );
+
+    let back = read_report(&path).expect("read the report back");
+    assert_eq!(back, report);
+    assert_eq!(
+        back.elements[0].b[2].to_bits(),
+        123_456_789.123_456_78_f64.to_bits()
+    );
+    assert_eq!(back.elements[1].b[1], 5e-324);
+
+    let text = std::fs::read_to_string(&path).expect("read the text");
+    let keys = [
+        "schema_version",
+        "input",
+        "options",
+        "counts",
+        "timings",
+        "solver",
+        "warnings",
+        "polygons",
+        "elements",
+    ];
+    // Top-level keys are indented by two spaces.
+    let positions: Vec<usize> = keys
+        .iter()
+        .map(|k| {
+            let top_level = format!("\n  \"{k}\":");
+            text.find(&top_level)
+                .unwrap_or_else(|| panic!("{k} missing"))
+        })
+        .collect();
+    assert!(
+        positions.windows(2).all(|w| w[0] < w[1]),
+        "key order {positions:?}"
+    );
+    assert!(text.contains("\"method\": \"bounces\""));
+    assert!(text.contains("\"side\": \"back\""));
+    // Deterministic: the same report gives the same bytes.
+    let again = dir.path().join("again.json");
+    write_report(&again, &report).expect("write again");
+    assert_eq!(std::fs::read(&again).expect("read"), text.into_bytes());
+}
+
+#[test]
+fn report_rejects_mismatched_radiosity_and_failed_writes_leave_nothing() {
+    let fixture = fixture();
+    let result = Report::new(
+        Path::new("x.gltf"),
+        &fixture.scene,
+        &fixture.mesh,
+        &fixture.radiosity[..3],
+        solver(),
+    );
+    assert!(matches!(result, Err(ExportError::InvalidData(_))));
+
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let result = write_report(&dir.path().join("missing/report.json"), &report());
+    assert!(matches!(result, Err(ExportError::Io { .. })));
+    assert!(file_names(dir.path()).is_empty());
+}
