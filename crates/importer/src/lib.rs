@@ -13,6 +13,11 @@
 use glam::{DMat4, DVec3};
 use std::path::{Path, PathBuf};
 
+mod accessor;
+mod gltf_in;
+mod obj_in;
+mod polygon;
+
 /// Where a polygon came from, so its results can be written back.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Origin {
@@ -165,9 +170,91 @@ pub enum ImportError {
 }
 
 /// Reads `path` (`.gltf`, `.glb` or `.obj`, by extension, case-insensitive).
+///
+/// - glTF: the nodes of the default scene (else scene 0, else every root node) are baked,
+///   each mesh once per node that uses it. ρ = `baseColorFactor` rgb, e = `emissiveFactor`
+///   × `KHR_materials_emissive_strength`; textures and vertex colours are ignored. A
+///   primitive without a material uses the glTF default material (ρ = 1, e = 0,
+///   single-sided), appended after the file's materials when some primitive needs it.
+/// - OBJ: one mesh (and one identity node) per `tobj` model, all in one scene. ρ = `Kd`,
+///   e = `Ke`, single-sided. A face without a material (no `usemtl`, a missing MTL file or
+///   an unknown name) uses a neutral grey default: ρ = 0.8, e = 0, appended after the MTL
+///   materials when used.
+///
+/// Faces are cleaned per primitive instance, in world space (f64; "scene size" is the
+/// diagonal of the bounding box of all vertices):
+/// 1. a non-finite position is an [`ImportError::InvalidValue`] naming mesh, primitive,
+///    face and node; so are non-finite colours, ρ outside [0, 1] and negative emission of
+///    a material in use;
+/// 2. consecutive repeated vertices (closer than 1e-9 × scene size) are removed; faces
+///    left with < 3 vertices or area ≤ 1e-12 × scene size² are dropped
+///    ([`ImportStats::degenerate_dropped`], one warning per instance);
+/// 3. consecutive source triangles t, t+1 sharing an edge (opposite directions), facing
+///    the same way, coplanar (every vertex within 1e-6 × the quad's size of its mean
+///    plane) and forming a strictly convex quad are merged ([`ImportStats::quads_merged`]);
+/// 4. OBJ polygons with > 4 vertices are ear-clipped (a fan from vertex 0 when convex) and
+///    their triangles merged pairwise into quads where planar and convex
+///    ([`ImportStats::ngons_split`]); a concave quad is cut along the diagonal from its
+///    reflex corner; a non-planar quad (same 1e-6 rule) is cut into two triangles with a
+///    warning;
+/// 5. a node whose world matrix mirrors (negative determinant) has its faces' vertex
+///    order reversed, so every polygon is counter-clockwise about its Newell normal,
+///    which points to the front;
+/// 6. a double-sided material adds, right after each front polygon, a [`Side::Back`]
+///    polygon with reversed vertices and negated normal.
+///
+/// No polygon left is [`ImportError::Empty`].
 pub fn load(path: &Path) -> Result<Scene, ImportError> {
-    let _ = path;
-    todo!("importer")
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match extension.as_deref() {
+        Some("gltf" | "glb") => gltf_in::load(path),
+        Some("obj") => obj_in::load(path),
+        _ => Err(ImportError::UnsupportedExtension),
+    }
+}
+
+/// `kind "name" (index)`, or `kind index` when unnamed: how messages name things.
+pub(crate) fn describe(kind: &str, name: Option<&str>, index: usize) -> String {
+    match name {
+        Some(name) => format!("{kind} {name:?} ({index})"),
+        None => format!("{kind} {index}"),
+    }
+}
+
+/// A material's values must be finite, with ρ in [0, 1] and e ≥ 0; `what` names the
+/// material and the mesh using it.
+pub(crate) fn check_material(material: &Material, what: &str) -> Result<(), ImportError> {
+    let invalid = |problem: String| ImportError::InvalidValue {
+        what: what.to_owned(),
+        problem,
+    };
+    if !material
+        .rho
+        .iter()
+        .chain(&material.emission)
+        .all(|v| v.is_finite())
+    {
+        return Err(invalid(format!(
+            "colour is not finite (ρ {:?}, e {:?})",
+            material.rho, material.emission
+        )));
+    }
+    if material.rho.iter().any(|r| !(0.0..=1.0).contains(r)) {
+        return Err(invalid(format!(
+            "reflectance ρ {:?} is outside [0, 1]",
+            material.rho
+        )));
+    }
+    if material.emission.iter().any(|e| *e < 0.0) {
+        return Err(invalid(format!(
+            "emission {:?} is negative",
+            material.emission
+        )));
+    }
+    Ok(())
 }
 
 /// The scene's world-space bounding box (min, max) over all polygon vertices.

@@ -1,0 +1,573 @@
+//! glTF 2.0 input (`.gltf` with embedded or external buffers, `.glb`).
+//!
+//! The document is parsed and validated by the `gltf` crate; buffers are loaded with
+//! `gltf::import_buffers` (textures are never decoded). Geometry is read with the
+//! bounds-checked readers of [`crate::accessor`].
+
+use crate::accessor;
+use crate::polygon::{self, Instance, SourceFace};
+use crate::{
+    check_material, describe, ImportError, ImportStats, Layout, Material, Mesh, Node, Origin,
+    Primitive, Scene, SceneRoots, Side, Transform,
+};
+use glam::{DMat4, DQuat, DVec3};
+use gltf::json::mesh::{Mode, Semantic};
+use gltf::json::validation::Checked;
+use gltf::json::Root;
+use std::collections::hash_map::{Entry, HashMap};
+use std::path::Path;
+
+/// Reads a `.gltf` or `.glb` file (told apart by the GLB magic, not the extension).
+pub(crate) fn load(path: &Path) -> Result<Scene, ImportError> {
+    let bytes = std::fs::read(path).map_err(|source| ImportError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    let (json, blob) = split_container(&bytes)?;
+    let root: Root = gltf::json::deserialize::from_slice(json)
+        .map_err(|e| ImportError::Gltf(one_line(&e.to_string())))?;
+    check_position_indices(&root)?;
+    let document = gltf::Document::from_json(root).map_err(|e| gltf_error(&e))?;
+    check_buffer_uris(&document)?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let buffers = gltf::import_buffers(&document, Some(base), blob.map(<[u8]>::to_vec))
+        .map_err(|e| gltf_error(&e))?;
+    build_scene(&document, &buffers)
+}
+
+/// Splits a GLB container (glTF 2.0, "GLB File Format": 12-byte header, JSON chunk,
+/// optional BIN chunk) into its JSON and binary parts; any other input is the JSON itself.
+fn split_container(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), ImportError> {
+    if !bytes.starts_with(b"glTF") {
+        return Ok((bytes, None));
+    }
+    let bad = |what: &str| ImportError::Gltf(format!("malformed GLB container: {what}"));
+    let word = |at: usize| -> Option<u32> {
+        let b = bytes.get(at..at.checked_add(4)?)?;
+        Some(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    };
+    let version = word(4).ok_or_else(|| bad("truncated header"))?;
+    if version != 2 {
+        return Err(bad(&format!("version {version}, expected 2")));
+    }
+    let length = word(8).ok_or_else(|| bad("truncated header"))? as usize;
+    let bytes = bytes
+        .get(..length)
+        .ok_or_else(|| bad("header length exceeds the file"))?;
+    let chunk = |at: usize| -> Option<(u32, &[u8], usize)> {
+        let len = bytes.get(at..at + 4)?;
+        let len = u32::from_le_bytes([len[0], len[1], len[2], len[3]]) as usize;
+        let kind = bytes.get(at + 4..at + 8)?;
+        let kind = u32::from_le_bytes([kind[0], kind[1], kind[2], kind[3]]);
+        let start = at + 8;
+        let end = start.checked_add(len)?;
+        Some((kind, bytes.get(start..end)?, end))
+    };
+    const JSON: u32 = 0x4E4F_534A;
+    const BIN: u32 = 0x004E_4942;
+    let (kind, json, next) = chunk(12).ok_or_else(|| bad("truncated JSON chunk"))?;
+    if kind != JSON {
+        return Err(bad("the first chunk is not JSON"));
+    }
+    let bin = if next >= bytes.len() {
+        None
+    } else {
+        match chunk(next) {
+            Some((BIN, data, _)) => Some(data),
+            Some(_) => None, // an unknown chunk type is ignored (glTF 2.0, "Chunks")
+            None => return Err(bad("truncated BIN chunk")),
+        }
+    };
+    Ok((json, bin))
+}
+
+/// One line for a `gltf` error (validation errors list the first and count the rest).
+fn gltf_error(e: &gltf::Error) -> ImportError {
+    let text = match e {
+        gltf::Error::Validation(errors) => match errors.first() {
+            Some((path, error)) if errors.len() > 1 => format!(
+                "{path}: {error} (and {} more validation errors)",
+                errors.len() - 1
+            ),
+            Some((path, error)) => format!("{path}: {error}"),
+            None => "validation failed".into(),
+        },
+        other => other.to_string(),
+    };
+    ImportError::Gltf(one_line(&text))
+}
+
+fn one_line(text: &str) -> String {
+    text.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// `gltf-json`'s validation indexes the accessor list with each POSITION index unchecked:
+/// refuse a dangling one before validating.
+fn check_position_indices(root: &Root) -> Result<(), ImportError> {
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let position = primitive
+                .attributes
+                .get(&Checked::Valid(Semantic::Positions));
+            if let Some(index) = position.filter(|i| i.value() >= root.accessors.len()) {
+                return Err(ImportError::Gltf(format!(
+                    "meshes[{m}].primitives[{p}]: POSITION accessor {} does not exist",
+                    index.value()
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `gltf::import_buffers` percent-decodes relative URIs with an `unwrap`: refuse those that
+/// do not decode to UTF-8 before calling it.
+fn check_buffer_uris(document: &gltf::Document) -> Result<(), ImportError> {
+    for buffer in document.buffers() {
+        if let gltf::buffer::Source::Uri(uri) = buffer.source() {
+            if !uri.contains(':') && String::from_utf8(percent_decode(uri)).is_err() {
+                return Err(ImportError::Gltf(format!(
+                    "buffer {}: URI {uri:?} is not valid percent-encoded UTF-8",
+                    buffer.index()
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// RFC 3986 percent-decoding; malformed escapes are kept literally.
+fn percent_decode(text: &str) -> Vec<u8> {
+    let bytes = text.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let hex = bytes
+            .get(i + 1..i + 3)
+            .and_then(|h| std::str::from_utf8(h).ok())
+            .and_then(|h| u8::from_str_radix(h, 16).ok());
+        match (bytes[i], hex) {
+            (b'%', Some(byte)) => {
+                out.push(byte);
+                i += 3;
+            }
+            (b, _) => {
+                out.push(b);
+                i += 1;
+            }
+        }
+    }
+    out
+}
+
+/// The glTF default material (glTF 2.0, "Default Material"): white, not emissive,
+/// single-sided.
+fn default_material() -> Material {
+    Material {
+        name: None,
+        rho: [1.0; 3],
+        emission: [0.0; 3],
+        double_sided: false,
+    }
+}
+
+/// Layout, materials and polygons of a validated document.
+fn build_scene(
+    document: &gltf::Document,
+    buffers: &[gltf::buffer::Data],
+) -> Result<Scene, ImportError> {
+    let root = document.as_json();
+    let nodes = read_nodes(root)?;
+    let (mut materials, material_of) = read_materials(document);
+    let mut layout = Layout {
+        nodes,
+        meshes: read_meshes(root, &material_of),
+        scenes: read_scenes(root),
+        scene: root.scene.map(|s| s.value()),
+    };
+    let baked_nodes = nodes_to_bake(root, &layout)?;
+
+    if uses_default(root) {
+        materials.push(default_material());
+    }
+    let mut stats = ImportStats::default();
+    let mut warnings = Vec::new();
+    let mut cache: HashMap<(usize, usize), Option<LocalPrimitive>> = HashMap::new();
+    let mut checked = vec![false; materials.len()];
+    let mut instances = Vec::new();
+    for &node_index in &baked_nodes {
+        let node = &layout.nodes[node_index];
+        let Some(mesh_index) = node.mesh else {
+            continue;
+        };
+        let mesh = root.meshes.get(mesh_index).ok_or_else(|| {
+            ImportError::Gltf(format!(
+                "node {node_index}: mesh {mesh_index} does not exist"
+            ))
+        })?;
+        let mesh_name = describe("mesh", mesh.name.as_deref(), mesh_index);
+        let node_name = describe("node", node.name.as_deref(), node_index);
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let label = format!("{mesh_name}, primitive {p}");
+            let key = (mesh_index, p);
+            let local = match cache.entry(key) {
+                Entry::Occupied(entry) => entry.into_mut(),
+                Entry::Vacant(entry) => entry.insert(read_primitive(
+                    root,
+                    buffers,
+                    primitive,
+                    &label,
+                    &mut stats,
+                    &mut warnings,
+                )?),
+            };
+            let Some(local) = local.as_ref() else {
+                continue;
+            };
+            let material_index = material_of(primitive.material.map(|m| m.value()));
+            let material = materials.get(material_index).ok_or_else(|| {
+                ImportError::Gltf(format!("{label}: material {material_index} does not exist"))
+            })?;
+            if !std::mem::replace(&mut checked[material_index], true) {
+                let name = describe("material", material.name.as_deref(), material_index);
+                check_material(material, &format!("{name} used by {label}"))?;
+            }
+            instances.push(Instance {
+                label,
+                place: format!(" in {node_name}"),
+                origin: Origin {
+                    node: node_index,
+                    mesh: mesh_index,
+                    primitive: p,
+                    face: 0,
+                    side: Side::Front,
+                },
+                material: material_index,
+                double_sided: material.double_sided,
+                faces: local.place(node.world),
+            });
+        }
+    }
+
+    let polygons = polygon::bake(&instances, &mut stats, &mut warnings)?;
+    for p in &polygons {
+        if let Some(primitive) = layout
+            .meshes
+            .get_mut(p.origin.mesh)
+            .and_then(|m| m.primitives.get_mut(p.origin.primitive))
+        {
+            primitive.baked = true;
+        }
+    }
+    if polygons.is_empty() {
+        return Err(ImportError::Empty);
+    }
+    Ok(Scene {
+        polygons,
+        materials,
+        layout,
+        stats,
+        warnings,
+    })
+}
+
+/// True when some primitive has no material (and so uses the glTF default material).
+fn uses_default(root: &Root) -> bool {
+    root.meshes
+        .iter()
+        .flat_map(|m| &m.primitives)
+        .any(|p| p.material.is_none())
+}
+
+/// All materials in glTF order, and the map from a primitive's material to its index
+/// (a primitive without one gets the default material, appended after the others).
+fn read_materials(document: &gltf::Document) -> (Vec<Material>, impl Fn(Option<usize>) -> usize) {
+    let materials: Vec<Material> = document
+        .materials()
+        .map(|m| {
+            let base = m.pbr_metallic_roughness().base_color_factor();
+            let strength = f64::from(m.emissive_strength().unwrap_or(1.0));
+            let emissive = m.emissive_factor();
+            Material {
+                name: m.name().map(str::to_owned),
+                rho: [base[0], base[1], base[2]].map(f64::from),
+                // `+ 0.0` turns a 0 × negative strength (−0) into 0.
+                emission: emissive.map(|e| f64::from(e) * strength + 0.0),
+                double_sided: m.double_sided(),
+            }
+        })
+        .collect();
+    let count = materials.len();
+    (materials, move |m: Option<usize>| m.unwrap_or(count))
+}
+
+/// Every mesh, with each primitive's material; `baked` is set once polygons exist.
+fn read_meshes(root: &Root, material_of: &impl Fn(Option<usize>) -> usize) -> Vec<Mesh> {
+    root.meshes
+        .iter()
+        .map(|mesh| Mesh {
+            name: mesh.name.clone(),
+            primitives: mesh
+                .primitives
+                .iter()
+                .map(|p| Primitive {
+                    material: material_of(p.material.map(|m| m.value())),
+                    baked: false,
+                })
+                .collect(),
+        })
+        .collect()
+}
+
+fn read_scenes(root: &Root) -> Vec<SceneRoots> {
+    root.scenes
+        .iter()
+        .map(|s| SceneRoots {
+            name: s.name.clone(),
+            nodes: s.nodes.iter().map(|n| n.value()).collect(),
+        })
+        .collect()
+}
+
+/// Every node with its local transform as written, and its world matrix composed
+/// parent-to-child in f64. A node with two parents or a cycle is an error.
+fn read_nodes(root: &Root) -> Result<Vec<Node>, ImportError> {
+    let count = root.nodes.len();
+    let mut parent: Vec<Option<usize>> = vec![None; count];
+    let mut nodes = Vec::with_capacity(count);
+    for (i, json) in root.nodes.iter().enumerate() {
+        let children: Vec<usize> = json.children.iter().flatten().map(|c| c.value()).collect();
+        for &child in &children {
+            let slot = parent.get_mut(child).ok_or_else(|| {
+                ImportError::Gltf(format!("node {i}: child {child} does not exist"))
+            })?;
+            if let Some(first) = slot.replace(i) {
+                return Err(ImportError::Gltf(format!(
+                    "node {child} has two parents (nodes {first} and {i})"
+                )));
+            }
+        }
+        nodes.push(Node {
+            name: json.name.clone(),
+            transform: local_transform(json),
+            children,
+            mesh: json.mesh.map(|m| m.value()),
+            world: DMat4::IDENTITY,
+        });
+    }
+    compose_worlds(&mut nodes, &parent)?;
+    Ok(nodes)
+}
+
+/// A node's transform exactly as written (TRS defaults filled in).
+fn local_transform(json: &gltf::json::Node) -> Transform {
+    match json.matrix {
+        Some(m) => Transform::Matrix(m),
+        None => Transform::Trs {
+            translation: json.translation.unwrap_or([0.0; 3]),
+            rotation: json.rotation.map_or([0.0, 0.0, 0.0, 1.0], |r| r.0),
+            scale: json.scale.unwrap_or([1.0; 3]),
+        },
+    }
+}
+
+/// The local matrix in f64: the matrix itself, or T·R·S (glTF 2.0, "Transformations")
+/// with the quaternion normalized.
+fn local_matrix(index: usize, transform: &Transform) -> Result<DMat4, ImportError> {
+    match transform {
+        Transform::Matrix(m) => Ok(DMat4::from_cols_array(&m.map(f64::from))),
+        Transform::Trs {
+            translation,
+            rotation,
+            scale,
+        } => {
+            let [x, y, z, w] = rotation.map(f64::from);
+            let q = DQuat::from_xyzw(x, y, z, w);
+            let length = q.length();
+            if !(length.is_finite() && length > 0.0) {
+                return Err(ImportError::Gltf(format!(
+                    "node {index}: rotation {rotation:?} is not a unit quaternion"
+                )));
+            }
+            Ok(DMat4::from_scale_rotation_translation(
+                DVec3::from(scale.map(f64::from)),
+                q / length,
+                DVec3::from(translation.map(f64::from)),
+            ))
+        }
+    }
+}
+
+/// World = parent world × local, walking down from the roots with an explicit stack.
+/// Every node has at most one parent here, so a node no root reaches is in a cycle.
+fn compose_worlds(nodes: &mut [Node], parent: &[Option<usize>]) -> Result<(), ImportError> {
+    let mut reached = vec![false; nodes.len()];
+    let mut stack: Vec<(usize, DMat4)> = (0..nodes.len())
+        .rev()
+        .filter(|&i| parent[i].is_none())
+        .map(|i| (i, DMat4::IDENTITY))
+        .collect();
+    while let Some((i, parent_world)) = stack.pop() {
+        let world = parent_world * local_matrix(i, &nodes[i].transform)?;
+        nodes[i].world = world;
+        reached[i] = true;
+        stack.extend(nodes[i].children.iter().rev().map(|&c| (c, world)));
+    }
+    match reached.iter().position(|&r| !r) {
+        Some(i) => Err(ImportError::Gltf(format!(
+            "node {i} is part of a cycle in the node hierarchy"
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// The nodes to bake, depth-first: those under the default scene, else scene 0, else
+/// under every root node. A node listed twice is baked once.
+fn nodes_to_bake(root: &Root, layout: &Layout) -> Result<Vec<usize>, ImportError> {
+    let scene = layout.scene.or(if layout.scenes.is_empty() {
+        None
+    } else {
+        Some(0)
+    });
+    let starts: Vec<usize> = match scene {
+        Some(s) => layout
+            .scenes
+            .get(s)
+            .ok_or_else(|| ImportError::Gltf(format!("scene {s} does not exist")))?
+            .nodes
+            .clone(),
+        None => {
+            let mut is_child = vec![false; root.nodes.len()];
+            for node in &layout.nodes {
+                for &c in &node.children {
+                    if let Some(slot) = is_child.get_mut(c) {
+                        *slot = true;
+                    }
+                }
+            }
+            (0..root.nodes.len()).filter(|&i| !is_child[i]).collect()
+        }
+    };
+    let mut seen = vec![false; layout.nodes.len()];
+    let mut order = Vec::new();
+    let mut stack: Vec<usize> = starts.into_iter().rev().collect();
+    while let Some(i) = stack.pop() {
+        let Some(slot) = seen.get_mut(i) else {
+            return Err(ImportError::Gltf(format!("node {i} does not exist")));
+        };
+        if std::mem::replace(slot, true) {
+            continue;
+        }
+        order.push(i);
+        stack.extend(layout.nodes[i].children.iter().rev());
+    }
+    Ok(order)
+}
+
+/// A primitive's triangles in its mesh's space (read once, placed per node).
+struct LocalPrimitive {
+    positions: Vec<DVec3>,
+    triangles: Vec<[u32; 3]>,
+}
+
+impl LocalPrimitive {
+    /// The triangles in world space, counter-clockwise from the front: a mirroring world
+    /// matrix (negative determinant) reverses the winding (glTF 2.0, "Transformations").
+    fn place(&self, world: DMat4) -> Vec<SourceFace> {
+        let positions: Vec<DVec3> = self
+            .positions
+            .iter()
+            .map(|&p| world.transform_point3(p))
+            .collect();
+        let mirrored = world.determinant() < 0.0;
+        self.triangles
+            .iter()
+            .enumerate()
+            .map(|(face, t)| {
+                let [a, b, c] = t.map(|i| positions[i as usize]);
+                SourceFace {
+                    face,
+                    vertices: if mirrored {
+                        vec![a, c, b]
+                    } else {
+                        vec![a, b, c]
+                    },
+                }
+            })
+            .collect()
+    }
+}
+
+/// Reads one primitive's triangles, or `None` (with a warning) when it has nothing to
+/// bake: points and lines, or no POSITION.
+fn read_primitive(
+    root: &Root,
+    buffers: &[gltf::buffer::Data],
+    primitive: &gltf::json::mesh::Primitive,
+    label: &str,
+    stats: &mut ImportStats,
+    warnings: &mut Vec<String>,
+) -> Result<Option<LocalPrimitive>, ImportError> {
+    let fail = |e: String| ImportError::Gltf(format!("{label}: {e}"));
+    let mode = match primitive.mode {
+        Checked::Valid(mode) => mode,
+        Checked::Invalid => return Err(fail("invalid primitive mode".into())),
+    };
+    if !matches!(
+        mode,
+        Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+    ) {
+        stats.primitives_skipped += 1;
+        warnings.push(format!("{label}: skipped ({mode:?} are not surfaces)"));
+        return Ok(None);
+    }
+    let Some(position) = primitive
+        .attributes
+        .get(&Checked::Valid(Semantic::Positions))
+    else {
+        warnings.push(format!("{label}: skipped (no POSITION attribute)"));
+        return Ok(None);
+    };
+    let positions = accessor::read_vec3(root, buffers, position.value()).map_err(fail)?;
+    let indices = match primitive.indices {
+        Some(index) => accessor::read_indices(root, buffers, index.value()).map_err(fail)?,
+        // Not indexed: the vertices in order (count ≤ accessor::MAX_COUNT).
+        None => (0..positions.len() as u32).collect(),
+    };
+    if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {
+        return Err(fail(format!(
+            "index {bad} is out of range (the primitive has {} vertices)",
+            positions.len()
+        )));
+    }
+    Ok(Some(LocalPrimitive {
+        positions,
+        triangles: triangles(mode, &indices),
+    }))
+}
+
+/// Triangles of a triangle list, strip or fan (glTF 2.0, "Topology Types"):
+/// strip triangle i is (i, i+1, i+2) for even i and (i, i+2, i+1) for odd i;
+/// fan triangle i is (i+1, i+2, 0).
+fn triangles(mode: Mode, indices: &[u32]) -> Vec<[u32; 3]> {
+    let strip_len = indices.len().saturating_sub(2);
+    match mode {
+        Mode::TriangleStrip => (0..strip_len)
+            .map(|i| {
+                let (a, b, c) = (indices[i], indices[i + 1], indices[i + 2]);
+                if i % 2 == 0 {
+                    [a, b, c]
+                } else {
+                    [a, c, b]
+                }
+            })
+            .collect(),
+        Mode::TriangleFan => (0..strip_len)
+            .map(|i| [indices[i + 1], indices[i + 2], indices[0]])
+            .collect(),
+        _ => indices
+            .chunks_exact(3)
+            .map(|t| [t[0], t[1], t[2]])
+            .collect(),
+    }
+}

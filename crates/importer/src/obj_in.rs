@@ -1,0 +1,406 @@
+//! OBJ + MTL input via `tobj`, with quads and larger polygons kept as written
+//! (`triangulate: false, single_index: true`).
+//!
+//! The text is checked line by line before `tobj` sees it, because `tobj` 4.0.5 panics on
+//! some malformed input (a face index of 0 or far out of range overflows its index
+//! arithmetic; a colour with two numbers fails an `unwrap`). The check also drops point
+//! and line elements (`p`, `l`: `tobj` reads a 3-vertex `l` as a face) and faces with
+//! fewer than 3 vertices, and normalises whitespace so `mtllib`/`usemtl` names parse.
+
+use crate::polygon::{self, Instance, SourceFace};
+use crate::{
+    check_material, describe, ImportError, ImportStats, Layout, Material, Mesh, Node, Origin,
+    Primitive, Scene, SceneRoots, Side, Transform,
+};
+use glam::{DMat4, DVec3};
+use std::cell::RefCell;
+use std::path::Path;
+
+/// Reflectance of the material used by OBJ faces without one (no `usemtl`, a missing MTL
+/// file, or an unknown material name), and of MTL materials without `Kd`.
+pub(crate) const DEFAULT_RHO: f64 = 0.8;
+
+/// The most vertices one face may have: ear clipping is quadratic to cubic in it.
+const MAX_FACE_VERTICES: usize = 1024;
+
+/// Reads an OBJ file and the MTL libraries it names.
+pub(crate) fn load(path: &Path) -> Result<Scene, ImportError> {
+    let bytes = std::fs::read(path).map_err(|source| ImportError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    let checked = check_obj(&String::from_utf8_lossy(&bytes))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let mtl_error = RefCell::new(None);
+    let mtl_warnings = RefCell::new(Vec::new());
+    // `..Default::default()` covers fields that other crates' `tobj` features may add.
+    #[allow(clippy::needless_update)]
+    let options = tobj::LoadOptions {
+        triangulate: false,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    let (models, mtl) = tobj::load_obj_buf(&mut checked.text.as_bytes(), &options, |name| {
+        load_mtl(dir, name, &mtl_error, &mtl_warnings)
+    })
+    .map_err(|e| ImportError::Obj(format!("{}: {e}", path.display())))?;
+    if let Some(error) = mtl_error.into_inner() {
+        return Err(error);
+    }
+    let mut warnings = mtl_warnings.into_inner();
+    let stats = ImportStats {
+        faces_read: checked.short_faces,
+        degenerate_dropped: checked.short_faces,
+        ..Default::default()
+    };
+    if checked.short_faces > 0 {
+        warnings.push(format!(
+            "dropped {} face(s) with fewer than 3 vertices",
+            checked.short_faces
+        ));
+    }
+    if checked.non_surfaces > 0 {
+        warnings.push(format!(
+            "skipped {} point/line element(s) (not surfaces)",
+            checked.non_surfaces
+        ));
+    }
+    let materials = mtl
+        .unwrap_or_default()
+        .iter()
+        .map(convert_material)
+        .collect();
+    build_scene(&models, materials, stats, warnings)
+}
+
+/// The OBJ text as `tobj` will read it, and what was taken out.
+struct CheckedObj {
+    text: String,
+    short_faces: usize,
+    non_surfaces: usize,
+}
+
+/// Checks every face's vertex references and rewrites each line as `keyword rest`.
+fn check_obj(text: &str) -> Result<CheckedObj, ImportError> {
+    let mut out = CheckedObj {
+        text: String::with_capacity(text.len()),
+        short_faces: 0,
+        non_surfaces: 0,
+    };
+    let totals = count_vertex_data(text);
+    let mut running = [0usize; 3];
+    for (n, line) in text.lines().enumerate() {
+        let (keyword, rest) = split_keyword(line);
+        match keyword {
+            "v" => running[0] += 1,
+            "vt" => running[1] += 1,
+            "vn" => running[2] += 1,
+            "l" | "p" => {
+                out.non_surfaces += 1;
+                continue;
+            }
+            "f" => {
+                let vertices: Vec<&str> = rest.split_whitespace().collect();
+                for vertex in &vertices {
+                    check_face_vertex(vertex, &running, &totals)
+                        .map_err(|e| ImportError::Obj(format!("line {}: {e}", n + 1)))?;
+                }
+                if vertices.len() < 3 {
+                    out.short_faces += 1;
+                    continue;
+                }
+            }
+            _ => {}
+        }
+        push_line(&mut out.text, keyword, rest);
+    }
+    Ok(out)
+}
+
+/// The first word of a line and the rest, trimmed.
+fn split_keyword(line: &str) -> (&str, &str) {
+    let line = line.trim();
+    match line.split_once(char::is_whitespace) {
+        Some((keyword, rest)) => (keyword, rest.trim()),
+        None => (line, ""),
+    }
+}
+
+/// How many positions, texture coordinates and normals the file has.
+fn count_vertex_data(text: &str) -> [usize; 3] {
+    let mut totals = [0; 3];
+    for line in text.lines() {
+        match split_keyword(line).0 {
+            "v" => totals[0] += 1,
+            "vt" => totals[1] += 1,
+            "vn" => totals[2] += 1,
+            _ => {}
+        }
+    }
+    totals
+}
+
+/// One `v`, `v/vt`, `v//vn` or `v/vt/vn` reference: 1-based, or negative (relative to the
+/// data read so far), and in range. Texture and normal references are ignored by `tobj`
+/// when the file has none, so they are only checked when it has some.
+fn check_face_vertex(
+    vertex: &str,
+    running: &[usize; 3],
+    totals: &[usize; 3],
+) -> Result<(), String> {
+    const KINDS: [&str; 3] = ["position", "texture coordinate", "normal"];
+    let parts: Vec<&str> = vertex.split('/').collect();
+    if parts.len() > 3 {
+        return Err(format!("face vertex {vertex:?} has more than 3 parts"));
+    }
+    for (k, part) in parts.iter().enumerate() {
+        if part.is_empty() || (k > 0 && totals[k] == 0) {
+            continue;
+        }
+        let x: i64 = part
+            .parse()
+            .map_err(|_| format!("face vertex {vertex:?} is not a number"))?;
+        let valid = match x {
+            x if x > 0 => (x as u64) <= totals[k] as u64,
+            x if x < 0 => x.unsigned_abs() <= running[k] as u64,
+            _ => false,
+        };
+        if !valid {
+            return Err(format!(
+                "face vertex {vertex:?} refers to {} {x}, which does not exist ({} in the file)",
+                KINDS[k], totals[k]
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The material loader handed to `tobj`: reads `dir/name`, checks its colour lines, and
+/// records a missing file as a warning and a malformed one as an error.
+fn load_mtl(
+    dir: &Path,
+    name: &Path,
+    error: &RefCell<Option<ImportError>>,
+    warnings: &RefCell<Vec<String>>,
+) -> tobj::MTLLoadResult {
+    let path = dir.join(name);
+    let bytes = match std::fs::read(&path) {
+        Ok(bytes) => bytes,
+        Err(e) => {
+            warnings.borrow_mut().push(format!(
+                "cannot read material library {} ({e}): its materials fall back to the default",
+                path.display()
+            ));
+            return Err(tobj::LoadError::OpenFileFailed);
+        }
+    };
+    let fail = |message: String| {
+        error
+            .borrow_mut()
+            .get_or_insert(ImportError::Obj(format!("{}: {message}", path.display())));
+        tobj::LoadError::MaterialParseError
+    };
+    let text = check_mtl(&String::from_utf8_lossy(&bytes)).map_err(fail)?;
+    tobj::load_mtl_buf(&mut text.as_bytes()).map_err(|e| fail(e.to_string()))
+}
+
+/// Checks the colour lines the importer uses, `Kd` and `Ke`: three numbers, or one
+/// meaning grey (as the MTL format allows). Unused colours (`Ka`, `Ks`) that `tobj` could
+/// not read are dropped. Rewrites each line as `keyword rest`.
+fn check_mtl(text: &str) -> Result<String, String> {
+    let mut out = String::with_capacity(text.len());
+    for (n, line) in text.lines().enumerate() {
+        let (keyword, rest) = split_keyword(line);
+        let mut rest = rest.to_owned();
+        if matches!(keyword, "Ka" | "Kd" | "Ks" | "Ke") {
+            match read_colour(&rest) {
+                Some(rgb) => rest = rgb,
+                None if matches!(keyword, "Ka" | "Ks") => continue,
+                None => {
+                    return Err(format!(
+                        "line {}: cannot read colour {keyword} {rest:?} (expected r g b)",
+                        n + 1
+                    ))
+                }
+            }
+        }
+        push_line(&mut out, keyword, &rest);
+    }
+    Ok(out)
+}
+
+/// `r g b` (extra words ignored, as `tobj` does) or a single grey value, as `r g b`.
+fn read_colour(text: &str) -> Option<String> {
+    let numbers: Vec<&str> = text.split_whitespace().collect();
+    let parses = |s: &str| s.parse::<f32>().is_ok();
+    match numbers.as_slice() {
+        [grey] if parses(grey) => Some(format!("{grey} {grey} {grey}")),
+        [r, g, b, ..] if [r, g, b].iter().all(|s| parses(s)) => Some(format!("{r} {g} {b}")),
+        _ => None,
+    }
+}
+
+/// Appends `keyword rest` as one line (nothing for a blank line).
+fn push_line(out: &mut String, keyword: &str, rest: &str) {
+    if keyword.is_empty() {
+        return;
+    }
+    out.push_str(keyword);
+    out.push(' ');
+    out.push_str(rest);
+    out.push('\n');
+}
+
+/// ρ from `Kd` (default grey when absent), e from `Ke` (default 0); single-sided.
+fn convert_material(m: &tobj::Material) -> Material {
+    Material {
+        name: Some(m.name.clone()),
+        rho: m.diffuse.map_or([DEFAULT_RHO; 3], |d| d.map(f64::from)),
+        emission: m.emissive.map_or([0.0; 3], |e| e.map(f64::from)),
+        double_sided: false,
+    }
+}
+
+/// The neutral grey used where a face has no material.
+fn default_material() -> Material {
+    Material {
+        name: None,
+        rho: [DEFAULT_RHO; 3],
+        emission: [0.0; 3],
+        double_sided: false,
+    }
+}
+
+/// One mesh, node and instance per non-empty model; one scene holding every node.
+fn build_scene(
+    models: &[tobj::Model],
+    mut materials: Vec<Material>,
+    mut stats: ImportStats,
+    mut warnings: Vec<String>,
+) -> Result<Scene, ImportError> {
+    let from_mtl = materials.len();
+    let mut layout = Layout::default();
+    let mut instances = Vec::new();
+    let mut without_material = 0;
+    for model in models.iter().filter(|m| !m.mesh.indices.is_empty()) {
+        let index = layout.meshes.len();
+        let label = format!(
+            "{}, primitive 0",
+            describe("mesh", Some(&model.name), index)
+        );
+        let material = match model.mesh.material_id.filter(|&m| m < from_mtl) {
+            Some(m) => m,
+            None => {
+                without_material += 1;
+                if materials.len() == from_mtl {
+                    materials.push(default_material());
+                }
+                from_mtl
+            }
+        };
+        let name = describe("material", materials[material].name.as_deref(), material);
+        check_material(&materials[material], &format!("{name} used by {label}"))?;
+        layout.meshes.push(Mesh {
+            name: Some(model.name.clone()),
+            primitives: vec![Primitive {
+                material,
+                baked: false,
+            }],
+        });
+        layout.nodes.push(Node {
+            name: Some(model.name.clone()),
+            transform: Transform::Trs {
+                translation: [0.0; 3],
+                rotation: [0.0, 0.0, 0.0, 1.0],
+                scale: [1.0; 3],
+            },
+            children: Vec::new(),
+            mesh: Some(index),
+            world: DMat4::IDENTITY,
+        });
+        instances.push(Instance {
+            faces: model_faces(&model.mesh)
+                .map_err(|e| ImportError::Obj(format!("{label}: {e}")))?,
+            label,
+            place: String::new(),
+            origin: Origin {
+                node: index,
+                mesh: index,
+                primitive: 0,
+                face: 0,
+                side: Side::Front,
+            },
+            material,
+            double_sided: false,
+        });
+    }
+    if without_material > 0 {
+        warnings.push(format!(
+            "{without_material} mesh(es) have no material: \
+             using the default grey (ρ = {DEFAULT_RHO}, e = 0)"
+        ));
+    }
+    layout.scenes.push(SceneRoots {
+        name: None,
+        nodes: (0..layout.nodes.len()).collect(),
+    });
+    layout.scene = Some(0);
+
+    let polygons = polygon::bake(&instances, &mut stats, &mut warnings)?;
+    for p in &polygons {
+        if let Some(primitive) = layout
+            .meshes
+            .get_mut(p.origin.mesh)
+            .and_then(|m| m.primitives.first_mut())
+        {
+            primitive.baked = true;
+        }
+    }
+    if polygons.is_empty() {
+        return Err(ImportError::Empty);
+    }
+    Ok(Scene {
+        polygons,
+        materials,
+        layout,
+        stats,
+        warnings,
+    })
+}
+
+/// The model's faces as position lists (`face_arities` is empty when all are triangles).
+fn model_faces(mesh: &tobj::Mesh) -> Result<Vec<SourceFace>, String> {
+    let position = |i: u32| -> Option<DVec3> {
+        let i = i as usize * 3;
+        let p = mesh.positions.get(i..i + 3)?;
+        Some(DVec3::new(p[0].into(), p[1].into(), p[2].into()))
+    };
+    let arities: Vec<usize> = if mesh.face_arities.is_empty() {
+        vec![3; mesh.indices.len() / 3]
+    } else {
+        mesh.face_arities.iter().map(|&n| n as usize).collect()
+    };
+    let mut faces = Vec::with_capacity(arities.len());
+    let mut start = 0;
+    for (face, n) in arities.into_iter().enumerate() {
+        if n > MAX_FACE_VERTICES {
+            return Err(format!(
+                "face {face} has {n} vertices, more than the importer's limit of {MAX_FACE_VERTICES}"
+            ));
+        }
+        let indices = mesh
+            .indices
+            .get(start..start + n)
+            .ok_or_else(|| format!("face {face} runs past the index list"))?;
+        let vertices = indices
+            .iter()
+            .map(|&i| position(i))
+            .collect::<Option<Vec<_>>>()
+            .ok_or_else(|| format!("face {face} refers to a missing vertex"))?;
+        faces.push(SourceFace { face, vertices });
+        start += n;
+    }
+    Ok(faces)
+}

@@ -1,0 +1,558 @@
+//! Geometry cleaning: world-space source faces → planar convex polygons of 3 or 4 vertices.
+//!
+//! Per primitive instance, in this order:
+//! 1. non-finite positions are an error;
+//! 2. repeated consecutive vertices are removed, and faces left with < 3 vertices or zero
+//!    area are dropped (one summary warning per instance);
+//! 3. each face becomes pieces: a triangle stays a triangle; a planar convex quad stays a
+//!    quad; a concave quad is split along its inner diagonal; a non-planar quad is split
+//!    into two triangles (warning); a polygon with > 4 vertices is ear-clipped and its
+//!    triangles merged pairwise back into quads where they form planar convex ones;
+//! 4. consecutive source triangles (faces t and t+1) that share an edge, lie in one plane
+//!    and form a strictly convex quad are merged into that quad;
+//! 5. the normal is computed with Newell's method from the (counter-clockwise) vertices,
+//!    and double-sided materials get a reversed back polygon right after each front one.
+//!
+//! The callers hand in faces already counter-clockwise seen from the front in world space
+//! (a mirroring node transform has been undone by reversing the vertex order).
+
+use crate::{ImportError, ImportStats, Origin, Polygon, Side};
+use glam::DVec3;
+
+/// Positions closer than this × scene size are the same point.
+const SAME_POINT: f64 = 1e-9;
+/// A face with area ≤ this × (scene size)² has no area.
+const ZERO_AREA: f64 = 1e-12;
+/// A polygon is planar when every vertex lies within this × its size of its mean plane.
+const PLANAR: f64 = 1e-6;
+/// A corner turns left (convex) when |e1 × e2|·n exceeds this × |e1||e2| (the sine of the
+/// turning angle); it is reflex when that is below minus this.
+const TURN: f64 = 1e-9;
+
+/// One source face (a triangle after strip/fan decoding, or an OBJ face), world space.
+#[derive(Clone, Debug)]
+pub(crate) struct SourceFace {
+    /// Index of the face within its primitive.
+    pub face: usize,
+    /// Counter-clockwise seen from the front.
+    pub vertices: Vec<DVec3>,
+}
+
+/// One primitive placed by one node: everything needed to turn its faces into polygons.
+#[derive(Clone, Debug)]
+pub(crate) struct Instance {
+    /// Names the mesh and primitive in messages, e.g. `mesh "Cube" (0), primitive 0`.
+    pub label: String,
+    /// Names the node in messages, e.g. ` in node "Box" (3)`; empty when there is one node.
+    pub place: String,
+    /// Node, mesh and primitive of every polygon (`face` and `side` are set per polygon).
+    pub origin: Origin,
+    /// Index into the scene's materials.
+    pub material: usize,
+    pub double_sided: bool,
+    pub faces: Vec<SourceFace>,
+}
+
+/// Length and area tolerances, relative to the scene size.
+#[derive(Clone, Copy, Debug)]
+struct Tolerance {
+    same_point: f64,
+    zero_area: f64,
+}
+
+/// What happened to one instance's faces, summarised in one warning line each.
+#[derive(Default)]
+struct Report {
+    degenerate: usize,
+    non_planar: usize,
+    self_intersecting: usize,
+}
+
+/// A cleaned piece of a face: a triangle or a convex quad.
+struct Piece {
+    face: usize,
+    vertices: Vec<DVec3>,
+    /// An untouched source triangle, which may merge with the next source triangle.
+    source_triangle: bool,
+}
+
+/// Turns every instance's faces into polygons (the module's steps 1 to 5).
+pub(crate) fn bake(
+    instances: &[Instance],
+    stats: &mut ImportStats,
+    warnings: &mut Vec<String>,
+) -> Result<Vec<Polygon>, ImportError> {
+    check_finite(instances)?;
+    let size = scene_size(instances);
+    let tol = Tolerance {
+        same_point: SAME_POINT * size,
+        zero_area: ZERO_AREA * size * size,
+    };
+    let mut polygons = Vec::new();
+    for instance in instances {
+        bake_instance(instance, tol, stats, warnings, &mut polygons);
+    }
+    Ok(polygons)
+}
+
+/// Step 1: every vertex position must be a finite number.
+fn check_finite(instances: &[Instance]) -> Result<(), ImportError> {
+    for instance in instances {
+        for face in &instance.faces {
+            if !face.vertices.iter().all(|v| v.is_finite()) {
+                return Err(ImportError::InvalidValue {
+                    what: format!("{}, face {}{}", instance.label, face.face, instance.place),
+                    problem: "vertex position is not finite".into(),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The diagonal of the bounding box of every vertex (0 for an empty scene).
+fn scene_size(instances: &[Instance]) -> f64 {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for v in instances
+        .iter()
+        .flat_map(|i| &i.faces)
+        .flat_map(|f| &f.vertices)
+    {
+        lo = lo.min(*v);
+        hi = hi.max(*v);
+    }
+    if lo.x <= hi.x {
+        (hi - lo).length()
+    } else {
+        0.0
+    }
+}
+
+/// Steps 2 to 5 for one instance.
+fn bake_instance(
+    instance: &Instance,
+    tol: Tolerance,
+    stats: &mut ImportStats,
+    warnings: &mut Vec<String>,
+    out: &mut Vec<Polygon>,
+) {
+    stats.faces_read += instance.faces.len();
+    let mut report = Report::default();
+    let mut pieces = Vec::new();
+    for face in &instance.faces {
+        let vertices = remove_repeats(&face.vertices, tol.same_point);
+        if vertices.len() < 3 || area(&vertices) <= tol.zero_area {
+            report.degenerate += 1;
+            continue;
+        }
+        split_face(face.face, vertices, tol, stats, &mut report, &mut pieces);
+    }
+    let (pieces, merged) = merge_pairs(pieces, tol, |a, b| {
+        a.source_triangle && b.source_triangle && a.face + 1 == b.face
+    });
+    stats.quads_merged += merged;
+    stats.degenerate_dropped += report.degenerate;
+    for piece in pieces {
+        emit(instance, piece, out);
+    }
+    summarise(instance, &report, warnings);
+}
+
+/// One warning line per kind of change, per instance.
+fn summarise(instance: &Instance, report: &Report, warnings: &mut Vec<String>) {
+    let name = format!("{}{}", instance.label, instance.place);
+    if report.degenerate > 0 {
+        warnings.push(format!(
+            "{name}: dropped {} degenerate face(s) (repeated vertices or zero area)",
+            report.degenerate
+        ));
+    }
+    if report.non_planar > 0 {
+        warnings.push(format!(
+            "{name}: split {} non-planar face(s) into triangles",
+            report.non_planar
+        ));
+    }
+    if report.self_intersecting > 0 {
+        warnings.push(format!(
+            "{name}: {} self-intersecting face(s) split into triangles as given",
+            report.self_intersecting
+        ));
+    }
+}
+
+/// Step 5: the front polygon, and for double-sided materials the back one right after it.
+fn emit(instance: &Instance, piece: Piece, out: &mut Vec<Polygon>) {
+    let normal = newell(&piece.vertices).normalize_or_zero();
+    if normal == DVec3::ZERO {
+        return;
+    }
+    let origin = Origin {
+        face: piece.face,
+        side: Side::Front,
+        ..instance.origin
+    };
+    let front = Polygon {
+        vertices: piece.vertices,
+        normal,
+        material: instance.material,
+        origin,
+    };
+    let back = instance.double_sided.then(|| Polygon {
+        vertices: front.vertices.iter().rev().copied().collect(),
+        normal: -normal,
+        material: instance.material,
+        origin: Origin {
+            side: Side::Back,
+            ..origin
+        },
+    });
+    out.push(front);
+    out.extend(back);
+}
+
+/// Step 2: drops each vertex equal (within `eps`) to the one before it, cyclically.
+fn remove_repeats(vertices: &[DVec3], eps: f64) -> Vec<DVec3> {
+    let mut kept: Vec<DVec3> = Vec::with_capacity(vertices.len());
+    for &v in vertices {
+        if kept.last().is_none_or(|last| last.distance(v) > eps) {
+            kept.push(v);
+        }
+    }
+    while kept.len() > 1 && kept[0].distance(kept[kept.len() - 1]) <= eps {
+        kept.pop();
+    }
+    kept
+}
+
+/// Step 3: one clean face (≥ 3 distinct vertices, non-zero area) into pieces.
+fn split_face(
+    face: usize,
+    vertices: Vec<DVec3>,
+    tol: Tolerance,
+    stats: &mut ImportStats,
+    report: &mut Report,
+    pieces: &mut Vec<Piece>,
+) {
+    match vertices.len() {
+        3 => pieces.push(Piece {
+            face,
+            vertices,
+            source_triangle: true,
+        }),
+        4 => split_quad(face, &vertices, tol, report, pieces),
+        _ => {
+            stats.ngons_split += 1;
+            if !is_planar(&vertices) {
+                report.non_planar += 1;
+            }
+            let triangles = ear_clip(face, &vertices, tol, report);
+            let (merged, _) = merge_pairs(triangles, tol, |_, _| true);
+            pieces.extend(merged);
+        }
+    }
+}
+
+/// A planar convex quad is kept; a concave one is cut along the diagonal from its reflex
+/// corner (which lies inside); a non-planar one is cut into two triangles.
+fn split_quad(
+    face: usize,
+    v: &[DVec3],
+    tol: Tolerance,
+    report: &mut Report,
+    pieces: &mut Vec<Piece>,
+) {
+    let normal = newell(v).normalize_or_zero();
+    let reflex: Vec<usize> = (0..4).filter(|&i| turn(v, i, normal) < -TURN).collect();
+    let planar = is_planar(v);
+    if planar && reflex.is_empty() {
+        pieces.push(Piece {
+            face,
+            vertices: v.to_vec(),
+            source_triangle: false,
+        });
+        return;
+    }
+    if !planar {
+        report.non_planar += 1;
+    }
+    // A simple quad has at most one reflex corner; two or more means the edges cross.
+    let r = match reflex.as_slice() {
+        [] => 0,
+        [r] => *r,
+        _ => {
+            report.self_intersecting += 1;
+            0
+        }
+    };
+    let corner = |k: usize| v[(r + k) % 4];
+    for triangle in [
+        [corner(0), corner(1), corner(2)],
+        [corner(0), corner(2), corner(3)],
+    ] {
+        if area(&triangle) > tol.zero_area {
+            pieces.push(Piece {
+                face,
+                vertices: triangle.to_vec(),
+                source_triangle: false,
+            });
+        }
+    }
+}
+
+/// Ear clipping of a polygon with > 4 vertices, about its Newell normal. For a convex
+/// polygon this is the fan from vertex 0. Falls back to a fan (counted as self-intersecting)
+/// when no ear is left, which only happens for self-intersecting input.
+fn ear_clip(face: usize, v: &[DVec3], tol: Tolerance, report: &mut Report) -> Vec<Piece> {
+    let normal = newell(v).normalize_or_zero();
+    let mut ring: Vec<usize> = (0..v.len()).collect();
+    let mut triangles: Vec<[usize; 3]> = Vec::new();
+    while ring.len() > 3 {
+        let m = ring.len();
+        // Start at corner 1 so that a convex polygon gives the fan 0-1-2, 0-2-3, ...
+        let ear = (1..=m).map(|k| k % m).find(|&k| {
+            let (a, b, c) = (ring[(k + m - 1) % m], ring[k], ring[(k + 1) % m]);
+            is_ear(v, &ring, [a, b, c], normal)
+        });
+        match ear {
+            Some(k) => {
+                triangles.push([ring[(k + m - 1) % m], ring[k], ring[(k + 1) % m]]);
+                ring.remove(k);
+            }
+            None => {
+                report.self_intersecting += 1;
+                triangles.extend((1..m - 1).map(|k| [ring[0], ring[k], ring[k + 1]]));
+                ring.clear();
+            }
+        }
+    }
+    if let [a, b, c] = ring[..] {
+        triangles.push([a, b, c]);
+    }
+    triangles
+        .into_iter()
+        .map(|[a, b, c]| vec![v[a], v[b], v[c]])
+        .filter(|t| area(t) > tol.zero_area)
+        .map(|vertices| Piece {
+            face,
+            vertices,
+            source_triangle: false,
+        })
+        .collect()
+}
+
+/// A corner b (between a and c) is an ear when it turns left and no other vertex of the
+/// ring lies inside or on the triangle a-b-c.
+fn is_ear(v: &[DVec3], ring: &[usize], [a, b, c]: [usize; 3], normal: DVec3) -> bool {
+    let (pa, pb, pc) = (v[a], v[b], v[c]);
+    if turn(&[pa, pb, pc], 1, normal) <= TURN {
+        return false;
+    }
+    let inside = |p: DVec3| {
+        [(pa, pb), (pb, pc), (pc, pa)]
+            .iter()
+            .all(|&(s, e)| (e - s).cross(p - s).dot(normal) >= 0.0)
+    };
+    ring.iter()
+        .filter(|&&i| i != a && i != b && i != c)
+        .map(|&i| v[i])
+        .filter(|&p| p != pa && p != pb && p != pc)
+        .all(|p| !inside(p))
+}
+
+/// Step 4: merges consecutive triangle pieces allowed by `may_pair` into convex quads.
+/// Returns the pieces and how many pairs were merged.
+fn merge_pairs(
+    pieces: Vec<Piece>,
+    tol: Tolerance,
+    may_pair: impl Fn(&Piece, &Piece) -> bool,
+) -> (Vec<Piece>, usize) {
+    let mut out: Vec<Piece> = Vec::with_capacity(pieces.len());
+    let mut merged = 0;
+    let mut iter = pieces.into_iter().peekable();
+    while let Some(piece) = iter.next() {
+        let quad = iter.peek().and_then(|next| {
+            let both_triangles = piece.vertices.len() == 3 && next.vertices.len() == 3;
+            if both_triangles && may_pair(&piece, next) {
+                merge_triangles(&piece.vertices, &next.vertices, tol.same_point)
+            } else {
+                None
+            }
+        });
+        match quad {
+            Some(vertices) => {
+                iter.next();
+                merged += 1;
+                out.push(Piece {
+                    face: piece.face,
+                    vertices,
+                    source_triangle: false,
+                });
+            }
+            None => out.push(piece),
+        }
+    }
+    (out, merged)
+}
+
+/// Two triangles that share an edge (in opposite directions: consistent winding), lie in
+/// one plane and whose union is strictly convex make a quad; returns its vertices.
+/// Shared vertices are compared by position within `eps`; the quad keeps the first
+/// triangle's positions.
+fn merge_triangles(a: &[DVec3], b: &[DVec3], eps: f64) -> Option<Vec<DVec3>> {
+    let same = |u: DVec3, v: DVec3| u.distance(v) <= eps;
+    for i in 0..3 {
+        let (p, q) = (a[i], a[(i + 1) % 3]);
+        for j in 0..3 {
+            if same(b[j], q) && same(b[(j + 1) % 3], p) {
+                let apex = b[(j + 2) % 3];
+                let quad = vec![q, a[(i + 2) % 3], p, apex];
+                return is_planar_convex_pair(a, b, &quad).then_some(quad);
+            }
+        }
+    }
+    None
+}
+
+/// Both triangles face the same way, the quad is planar and every corner turns left.
+fn is_planar_convex_pair(a: &[DVec3], b: &[DVec3], quad: &[DVec3]) -> bool {
+    let normal = newell(a).normalize_or_zero();
+    newell(b).dot(normal) > 0.0 && is_planar(quad) && (0..4).all(|i| turn(quad, i, normal) > TURN)
+}
+
+/// Every vertex lies within `PLANAR` × the polygon's size of its mean (Newell) plane.
+fn is_planar(v: &[DVec3]) -> bool {
+    let normal = newell(v).normalize_or_zero();
+    let centre = v.iter().copied().sum::<DVec3>() / v.len() as f64;
+    let size = polygon_size(v);
+    v.iter()
+        .all(|p| (*p - centre).dot(normal).abs() <= PLANAR * size)
+}
+
+/// The diagonal of the polygon's bounding box.
+fn polygon_size(v: &[DVec3]) -> f64 {
+    let lo = v
+        .iter()
+        .copied()
+        .fold(DVec3::splat(f64::INFINITY), DVec3::min);
+    let hi = v
+        .iter()
+        .copied()
+        .fold(DVec3::splat(f64::NEG_INFINITY), DVec3::max);
+    (hi - lo).length()
+}
+
+/// The sine of the turning angle at corner `i` about `normal`: > 0 turns left (convex).
+fn turn(v: &[DVec3], i: usize, normal: DVec3) -> f64 {
+    let n = v.len();
+    let e1 = v[i] - v[(i + n - 1) % n];
+    let e2 = v[(i + 1) % n] - v[i];
+    let lengths = e1.length() * e2.length();
+    if lengths == 0.0 {
+        return 0.0;
+    }
+    e1.cross(e2).dot(normal) / lengths
+}
+
+/// Newell's method: twice the vector area of a polygon (its normal times twice its area).
+/// Coordinates are taken relative to the first vertex to limit cancellation.
+pub(crate) fn newell(v: &[DVec3]) -> DVec3 {
+    let Some(&first) = v.first() else {
+        return DVec3::ZERO;
+    };
+    let n = v.len();
+    (0..n)
+        .map(|i| (v[i] - first).cross(v[(i + 1) % n] - first))
+        .sum()
+}
+
+/// The polygon's area (exact for planar polygons).
+fn area(v: &[DVec3]) -> f64 {
+    newell(v).length() * 0.5
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn d(x: f64, y: f64, z: f64) -> DVec3 {
+        DVec3::new(x, y, z)
+    }
+
+    fn one_face(vertices: Vec<DVec3>) -> Vec<Polygon> {
+        let instance = Instance {
+            label: "mesh 0, primitive 0".into(),
+            place: String::new(),
+            origin: Origin {
+                node: 0,
+                mesh: 0,
+                primitive: 0,
+                face: 0,
+                side: Side::Front,
+            },
+            material: 0,
+            double_sided: false,
+            faces: vec![SourceFace { face: 0, vertices }],
+        };
+        let mut stats = ImportStats::default();
+        bake(&[instance], &mut stats, &mut Vec::new()).unwrap()
+    }
+
+    #[test]
+    fn newell_gives_twice_the_area() {
+        let square = [d(0., 0., 0.), d(2., 0., 0.), d(2., 2., 0.), d(0., 2., 0.)];
+        assert_eq!(newell(&square), d(0., 0., 8.));
+    }
+
+    #[test]
+    fn remove_repeats_is_cyclic() {
+        let v = [
+            d(0., 0., 0.),
+            d(0., 0., 0.),
+            d(1., 0., 0.),
+            d(0., 1., 0.),
+            d(0., 0., 0.),
+        ];
+        assert_eq!(remove_repeats(&v, 0.0).len(), 3);
+    }
+
+    #[test]
+    fn concave_quad_is_cut_at_its_reflex_corner() {
+        // Dart: corner 2 at (1, 0.5) is reflex; the inner diagonal is 2-0.
+        let polygons = one_face(vec![
+            d(0., 0., 0.),
+            d(2., 0., 0.),
+            d(1., 0.5, 0.),
+            d(1., 2., 0.),
+        ]);
+        assert_eq!(polygons.len(), 2);
+        let total: f64 = polygons.iter().map(|p| area(&p.vertices)).sum();
+        // Shoelace area of the dart: 1.25.
+        assert!((total - 1.25).abs() < 1e-12);
+        for p in &polygons {
+            assert_eq!(p.vertices[0], d(1., 0.5, 0.));
+            assert!((p.normal - d(0., 0., 1.)).length() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn concave_hexagon_is_ear_clipped_inside() {
+        // An L shape: six corners, one reflex.
+        let l = vec![
+            d(0., 0., 0.),
+            d(2., 0., 0.),
+            d(2., 1., 0.),
+            d(1., 1., 0.),
+            d(1., 2., 0.),
+            d(0., 2., 0.),
+        ];
+        let polygons = one_face(l);
+        let total: f64 = polygons.iter().map(|p| area(&p.vertices)).sum();
+        assert!((total - 3.0).abs() < 1e-12, "area {total}");
+        for p in &polygons {
+            assert!((p.normal - d(0., 0., 1.)).length() < 1e-12);
+            assert!((0..p.vertices.len()).all(|i| turn(&p.vertices, i, p.normal) > 0.0));
+        }
+    }
+}
