@@ -1,0 +1,48 @@
+//! Form-factor throughput: element pairs per second for the dense matrix of the paper's cube
+//! at several subdivisions (all pairs, each unordered pair integrated once, all cores).
+//! Run: `cargo bench -p bake-form-factor --bench pairs`.
+
+use bake_form_factor::{ContourOptions, FormFactors};
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use glam::DVec3;
+use importer::{Origin, Polygon, Side};
+use mesher::{mesh, Subdivision};
+
+fn cube() -> Vec<Polygon> {
+    let v = DVec3::new;
+    let walls = [
+        [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)],
+        [v(0., 0., 1.), v(0., 1., 1.), v(1., 1., 1.), v(1., 0., 1.)],
+        [v(0., 0., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., 0., 1.)],
+        [v(1., 0., 0.), v(1., 0., 1.), v(1., 1., 1.), v(1., 1., 0.)],
+        [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
+        [v(0., 1., 0.), v(1., 1., 0.), v(1., 1., 1.), v(0., 1., 1.)],
+    ];
+    walls
+        .iter()
+        .enumerate()
+        .map(|(k, c)| Polygon {
+            vertices: c.to_vec(),
+            normal: (c[1] - c[0]).cross(c[2] - c[0]).normalize(),
+            material: 0,
+            origin: Origin { node: k, mesh: k, primitive: 0, face: 0, side: Side::Front },
+        })
+        .collect()
+}
+
+fn dense(c: &mut Criterion) {
+    let mut group = c.benchmark_group("cube_dense");
+    group.sample_size(10);
+    for n in [4u32, 7, 12] {
+        let m = mesh(&cube(), Subdivision::Count(n)).expect("mesh");
+        let elements = m.elements.len() as u64;
+        group.throughput(Throughput::Elements(elements * (elements - 1) / 2));
+        group.bench_function(format!("subdiv_{n}"), |b| {
+            b.iter(|| FormFactors::new(&m, ContourOptions::default()).dense())
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, dense);
+criterion_main!(benches);
