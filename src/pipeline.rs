@@ -1,0 +1,206 @@
+//! Wires the stages together, times them, reports progress, and maps failures to exit codes.
+
+use crate::{Cli, Shading};
+use anyhow::{anyhow, Context};
+use exporter::report::{self, Report, SolverInfo, SolverMethod};
+use form_factor::{ContourOptions, FormFactors};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use mesher::Subdivision;
+use std::collections::BTreeMap;
+use std::io::IsTerminal;
+use std::time::Instant;
+
+/// A failure with the exit code it maps to (1 bad input, 3 internal or output error).
+pub struct Failure {
+    pub code: u8,
+    pub error: anyhow::Error,
+}
+
+fn bad_input(error: anyhow::Error) -> Failure {
+    Failure { code: 1, error }
+}
+
+fn internal(error: anyhow::Error) -> Failure {
+    Failure { code: 3, error }
+}
+
+/// The dense path keeps an n×n matrix per distinct reflectance band plus F itself: refuse
+/// meshes that could not fit rather than die mid-bake.
+const MAX_DENSE_ELEMENTS: usize = 20_000;
+
+pub fn run(cli: &Cli) -> Result<(), Failure> {
+    let started = Instant::now();
+    if let Some(threads) = cli.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads as usize)
+            .build_global()
+            .map_err(|e| internal(anyhow!("cannot start {threads} worker threads: {e}")))?;
+    }
+    if !(cli.exposure.is_finite() && cli.exposure >= 0.0) {
+        return Err(bad_input(anyhow!(
+            "--exposure must be a finite number ≥ 0, got {}",
+            cli.exposure
+        )));
+    }
+    let mut timings = BTreeMap::new();
+    let mut lap = Instant::now();
+    let mut stage = |name: &str, lap: &mut Instant| {
+        timings.insert(name.to_string(), lap.elapsed().as_secs_f64());
+        *lap = Instant::now();
+    };
+    let input = &cli.input;
+
+    // 1. Import.
+    let scene = importer::load(input)
+        .with_context(|| format!("{}", input.display()))
+        .map_err(bad_input)?;
+    stage("import", &mut lap);
+    let mut warnings = scene.warnings.clone();
+
+    // 2. Mesh.
+    let subdivision = match (cli.subdiv, cli.max_element_size) {
+        (Some(n), _) => Subdivision::Count(n),
+        (None, Some(l)) => Subdivision::MaxSize(l),
+        (None, None) => Subdivision::MaxSize(mesher::default_max_element_size(&scene.polygons)),
+    };
+    let mesh = mesher::mesh(&scene.polygons, subdivision)
+        .with_context(|| format!("{}: cannot subdivide", input.display()))
+        .map_err(bad_input)?;
+    let n = mesh.elements.len();
+    if n > MAX_DENSE_ELEMENTS {
+        return Err(bad_input(anyhow!(
+            "{}: {n} elements is more than the dense solver's limit of {MAX_DENSE_ELEMENTS}; \
+             use a larger --max-element-size or a smaller --subdiv",
+            input.display()
+        )));
+    }
+    stage("mesh", &mut lap);
+
+    // 3. Form factors (geometry only: computed once for every band).
+    let contour = ContourOptions {
+        segments: cli.ff_segments,
+        order: cli.ff_order,
+        ..ContourOptions::default()
+    };
+    let bar = progress_bar(cli.quiet, n as u64, "form factors");
+    let matrix = FormFactors::new(&mesh, contour).dense_with_progress(&|rows| bar.inc(rows));
+    bar.finish_and_clear();
+    stage("form_factors", &mut lap);
+
+    // 4. Solve (I − ρF) b = e per band.
+    let (rho, e): (Vec<[f64; 3]>, Vec<[f64; 3]>) = mesh
+        .elements
+        .iter()
+        .map(|el| {
+            let m = &scene.materials[scene.polygons[el.polygon as usize].material];
+            (m.rho, m.emission)
+        })
+        .unzip();
+    if e.iter().all(|x| x.iter().all(|&v| v == 0.0)) {
+        warnings.push("the scene has no emitters: every radiosity is 0".to_string());
+    }
+    let f = solver::DenseMatrix::new(n, &matrix.data).map_err(|err| internal(err.into()))?;
+    let solution = match cli.bounces {
+        None => solver::solve_direct(&f, &rho, &e),
+        Some(k) => solver::solve_bounces(&f, &rho, &e, k),
+    }
+    .with_context(|| format!("{}: no solution", input.display()))
+    .map_err(bad_input)?;
+    stage("solve", &mut lap);
+
+    // 5. Export.
+    let shading = match cli.shading {
+        Shading::Smooth => exporter::Shading::Smooth,
+        Shading::Flat => exporter::Shading::Flat,
+    };
+    let bake = exporter::Bake {
+        scene: &scene,
+        mesh: &mesh,
+        radiosity: &solution.b,
+        shading,
+        exposure: cli.exposure,
+    };
+    exporter::write_gltf(&cli.output, &bake)
+        .with_context(|| format!("cannot write {}", cli.output.display()))
+        .map_err(internal)?;
+    stage("export", &mut lap);
+
+    if !cli.quiet {
+        for w in &warnings {
+            eprintln!("bake: warning: {w}");
+        }
+    }
+
+    if let Some(path) = &cli.report {
+        let info = SolverInfo {
+            method: if cli.bounces.is_some() {
+                SolverMethod::Bounces
+            } else {
+                SolverMethod::Direct
+            },
+            bounces: cli.bounces,
+            residual: solution.residual,
+            residual_relative: solution.residual_relative,
+            factorizations: solution.factorizations as u32,
+        };
+        let mut report = Report::new(input, &scene, &mesh, &solution.b, info)
+            .with_context(|| format!("cannot build the report {}", path.display()))
+            .map_err(internal)?;
+        report.options = options_json(cli, subdivision, contour);
+        report.counts.pairs_evaluated = matrix.stats.pairs_integrated;
+        report.warnings = warnings.clone();
+        timings.insert("total".to_string(), started.elapsed().as_secs_f64());
+        report.timings = timings;
+        report::write_report(path, &report)
+            .with_context(|| format!("cannot write {}", path.display()))
+            .map_err(internal)?;
+    }
+
+    if !cli.quiet {
+        let r = solution.residual;
+        eprintln!(
+            "bake: {} → {}: {} polygons, {n} elements, {} pairs integrated, residual {:.1e}/{:.1e}/{:.1e}, {:.2} s",
+            input.display(),
+            cli.output.display(),
+            scene.polygons.len(),
+            matrix.stats.pairs_integrated,
+            r[0],
+            r[1],
+            r[2],
+            started.elapsed().as_secs_f64()
+        );
+    }
+    Ok(())
+}
+
+fn progress_bar(quiet: bool, len: u64, what: &str) -> ProgressBar {
+    if quiet || !std::io::stderr().is_terminal() {
+        return ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden());
+    }
+    let bar = ProgressBar::new(len);
+    if let Ok(style) =
+        ProgressStyle::with_template("{msg:>13} [{bar:40}] {pos}/{len} rows, {eta} left")
+    {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.set_message(what.to_string());
+    bar
+}
+
+/// The options as resolved for this bake (defaults filled in), for the report.
+fn options_json(cli: &Cli, subdivision: Subdivision, contour: ContourOptions) -> serde_json::Value {
+    let subdivision = match subdivision {
+        Subdivision::Count(n) => serde_json::json!({ "subdiv": n }),
+        Subdivision::MaxSize(l) => serde_json::json!({ "max_element_size": l }),
+    };
+    serde_json::json!({
+        "subdivision": subdivision,
+        "bounces": cli.bounces,
+        "shading": match cli.shading { Shading::Smooth => "smooth", Shading::Flat => "flat" },
+        "exposure": cli.exposure,
+        "ff_segments": contour.segments,
+        "ff_order": contour.order,
+        "ff_near_ratio": contour.near_ratio,
+        "output": cli.output.display().to_string(),
+    })
+}
