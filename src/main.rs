@@ -33,7 +33,7 @@ pub struct Cli {
     /// Subdivide so that no element edge is longer than L (world units). Default when neither
     /// this nor --subdiv is given: the scene's bounding-box diagonal / 16 (the unit cube gets
     /// 10×10 elements per wall).
-    #[arg(long, value_name = "L")]
+    #[arg(long, value_name = "L", allow_negative_numbers = true)]
     pub max_element_size: Option<f64>,
 
     /// Truncate the light transport after exactly K interreflections instead of solving the
@@ -48,7 +48,12 @@ pub struct Cli {
     pub shading: Shading,
     /// Multiply radiosity by this before clamping to [0, 1] for COLOR_0 (the unclamped value
     /// is kept in the _RADIOSITY attribute and the report).
-    #[arg(long, value_name = "X", default_value_t = 1.0)]
+    #[arg(
+        long,
+        value_name = "X",
+        default_value_t = 1.0,
+        allow_negative_numbers = true
+    )]
     pub exposure: f64,
 
     /// Contour integral: cut each element edge into this many equal segments.
@@ -92,8 +97,26 @@ fn main() -> ExitCode {
     match pipeline::run(&cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(failure) => {
-            eprintln!("bake: error: {:#}", failure.error);
+            eprintln!("bake: error: {}", one_line(&failure.error));
             ExitCode::from(failure.code)
         }
     }
+}
+
+/// The error and its causes on one line, `: `-separated. A cause whose text the line already
+/// holds is left out: the crates' messages often embed their source (`cannot read X: {io}`).
+fn one_line(error: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in error.chain() {
+        let text = cause.to_string();
+        let text = text.split_whitespace().collect::<Vec<_>>().join(" ");
+        if line.contains(&text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&text);
+    }
+    line
 }

@@ -42,6 +42,21 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             cli.exposure
         )));
     }
+    // Fail before the bake, not after it: a missing report directory would otherwise fail
+    // only once OUT has been written.
+    for path in std::iter::once(&cli.output).chain(&cli.report) {
+        let dir = match path.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => dir,
+            _ => std::path::Path::new("."),
+        };
+        if !dir.is_dir() {
+            return Err(internal(anyhow!(
+                "cannot write {}: {} is not an existing directory",
+                path.display(),
+                dir.display()
+            )));
+        }
+    }
     let mut timings = BTreeMap::new();
     let mut lap = Instant::now();
     let mut stage = |name: &str, lap: &mut Instant| {

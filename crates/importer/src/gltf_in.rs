@@ -31,7 +31,7 @@ pub(crate) fn load(path: &Path) -> Result<Scene, ImportError> {
     check_buffer_uris(&document)?;
     let base = path.parent().unwrap_or(Path::new("."));
     let buffers = gltf::import_buffers(&document, Some(base), blob.map(<[u8]>::to_vec))
-        .map_err(|e| gltf_error(&e))?;
+        .map_err(|e| buffer_error(&document, base, &e))?;
     build_scene(&document, &buffers)
 }
 
@@ -99,6 +99,26 @@ fn gltf_error(e: &gltf::Error) -> ImportError {
 
 fn one_line(text: &str) -> String {
     text.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// `gltf::import_buffers` reports an unreadable buffer file without its name: name the first
+/// external buffer file that cannot be opened.
+fn buffer_error(document: &gltf::Document, base: &Path, e: &gltf::Error) -> ImportError {
+    if let gltf::Error::Io(io) = e {
+        let unreadable = document.buffers().find_map(|buffer| match buffer.source() {
+            gltf::buffer::Source::Uri(uri) if !uri.contains(':') => {
+                let file = String::from_utf8_lossy(&percent_decode(uri)).into_owned();
+                std::fs::File::open(base.join(&file))
+                    .is_err()
+                    .then(|| (buffer.index(), file))
+            }
+            _ => None,
+        });
+        if let Some((index, file)) = unreadable {
+            return ImportError::Gltf(format!("buffer {index}: cannot read {file:?}: {io}"));
+        }
+    }
+    gltf_error(e)
 }
 
 /// `gltf-json`'s validation indexes the accessor list with each POSITION index unchecked:

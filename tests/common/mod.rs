@@ -1,0 +1,286 @@
+//! Helpers shared by the CLI's end-to-end tests: running the `bake` binary, listing output
+//! directories, and writing small (often deliberately broken) glTF and OBJ inputs.
+
+#![allow(dead_code)]
+
+use serde_json::{json, Value};
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The paper's cube: six unit walls, one emitter (e = 1, ρ = 0), two coloured side walls.
+pub const CUBE_WALLS: [&str; 6] = ["emitter", "back", "red", "blue", "floor", "ceiling"];
+
+/// What one run of `bake` did.
+#[derive(Debug)]
+pub struct Run {
+    /// The exit code (`None` when killed by a signal).
+    pub code: Option<i32>,
+    pub stdout: String,
+    pub stderr: String,
+}
+
+impl Run {
+    /// stderr lines that are not warnings (trimmed, blank lines left out).
+    pub fn error_lines(&self) -> Vec<&str> {
+        self.stderr
+            .trim()
+            .lines()
+            .map(str::trim)
+            .filter(|line| !line.is_empty() && !line.starts_with("bake: warning:"))
+            .collect()
+    }
+
+    /// stderr lines that are warnings.
+    pub fn warning_lines(&self) -> Vec<&str> {
+        self.stderr
+            .lines()
+            .filter(|line| line.starts_with("bake: warning:"))
+            .collect()
+    }
+
+    /// Asserts exit 0 and returns self.
+    pub fn success(self) -> Run {
+        assert_eq!(self.code, Some(0), "bake failed: {self:#?}");
+        self
+    }
+}
+
+/// Runs the `bake` binary with `args` in the current directory.
+pub fn bake<I, S>(args: I) -> Run
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<OsStr>,
+{
+    bake_in(None, args)
+}
+
+/// Runs the `bake` binary with `args`, in `dir` when given.
+pub fn bake_in<I, S>(dir: Option<&Path>, args: I) -> Run
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<OsStr>,
+{
+    let mut command = Command::new(env!("CARGO_BIN_EXE_bake"));
+    command.args(args);
+    if let Some(dir) = dir {
+        command.current_dir(dir);
+    }
+    let output = command.output().expect("run the bake binary");
+    Run {
+        code: output.status.code(),
+        stdout: String::from_utf8_lossy(&output.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&output.stderr).into_owned(),
+    }
+}
+
+/// `fixtures/<name>` in the workspace.
+pub fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fixtures")
+        .join(name)
+}
+
+/// The names of everything in `dir` (hidden files included), sorted.
+pub fn file_names(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .expect("list the directory")
+        .map(|entry| {
+            entry
+                .expect("a directory entry")
+                .file_name()
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect();
+    names.sort();
+    names
+}
+
+/// A bake report with `timings` (the only part that may change between runs) removed.
+pub fn report_without_timings(path: &Path) -> exporter::report::Report {
+    let mut report = exporter::report::read_report(path).expect("read the bake report");
+    report.timings.clear();
+    report
+}
+
+pub fn write_text(path: &Path, text: &str) {
+    std::fs::write(path, text).expect("write a test input");
+}
+
+pub fn write_json(path: &Path, value: &Value) {
+    let text = serde_json::to_string_pretty(value).expect("encode JSON");
+    write_text(path, &text);
+}
+
+/// Standard base64 with padding (RFC 4648), for `data:` URIs.
+pub fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            chunk.get(1).copied().unwrap_or(0),
+            chunk.get(2).copied().unwrap_or(0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for k in 0..4 {
+            if k <= chunk.len() {
+                out.push(char::from(ALPHABET[(n >> (18 - 6 * k)) as usize & 63]));
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+pub fn data_uri(bytes: &[u8]) -> String {
+    format!("data:application/octet-stream;base64,{}", base64(bytes))
+}
+
+/// Little-endian f32 bytes of the positions.
+pub fn position_bytes(positions: &[[f32; 3]]) -> Vec<u8> {
+    positions
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect()
+}
+
+/// Component-wise min and max over the finite values (glTF requires POSITION bounds; a
+/// NaN can't be written in JSON, so the bounds of a poisoned buffer skip it).
+fn finite_bounds(positions: &[[f32; 3]]) -> (Value, Value) {
+    let mut min = [0.0f32; 3];
+    let mut max = [0.0f32; 3];
+    for axis in 0..3 {
+        let finite = positions.iter().map(|p| p[axis]).filter(|v| v.is_finite());
+        min[axis] = finite.clone().fold(f32::INFINITY, f32::min);
+        max[axis] = finite.fold(f32::NEG_INFINITY, f32::max);
+    }
+    (json!(min), json!(max))
+}
+
+/// A one-mesh glTF: node "wall" → mesh "wall" with one non-indexed primitive of `mode`
+/// (4 = TRIANGLES, 0 = POINTS) over `positions`, stored in buffer 0 as a data URI. With
+/// `material`, it becomes material 0 and the primitive uses it.
+pub struct GltfBuilder {
+    pub positions: Vec<[f32; 3]>,
+    pub mode: u32,
+    pub material: Option<Value>,
+}
+
+impl GltfBuilder {
+    pub fn triangles(positions: &[[f32; 3]]) -> Self {
+        GltfBuilder {
+            positions: positions.to_vec(),
+            mode: 4,
+            material: None,
+        }
+    }
+
+    pub fn mode(mut self, mode: u32) -> Self {
+        self.mode = mode;
+        self
+    }
+
+    pub fn material(mut self, material: Value) -> Self {
+        self.material = Some(material);
+        self
+    }
+
+    /// The document, with the buffer stored at `uri`.
+    pub fn json_with_buffer_uri(&self, uri: &str) -> Value {
+        let bytes = position_bytes(&self.positions);
+        let (min, max) = finite_bounds(&self.positions);
+        let mut primitive = json!({ "attributes": { "POSITION": 0 }, "mode": self.mode });
+        let mut root = json!({
+            "asset": { "version": "2.0" },
+            "scene": 0,
+            "scenes": [{ "nodes": [0] }],
+            "nodes": [{ "name": "wall", "mesh": 0 }],
+            "accessors": [{
+                "bufferView": 0, "componentType": 5126, "count": self.positions.len(),
+                "type": "VEC3", "min": min, "max": max
+            }],
+            "bufferViews": [{ "buffer": 0, "byteLength": bytes.len() }],
+            "buffers": [{ "byteLength": bytes.len(), "uri": uri }],
+        });
+        if let Some(material) = &self.material {
+            primitive["material"] = json!(0);
+            root["materials"] = json!([material]);
+        }
+        root["meshes"] = json!([{ "name": "wall", "primitives": [primitive] }]);
+        root
+    }
+
+    /// The document with its buffer embedded as a data URI.
+    pub fn json(&self) -> Value {
+        self.json_with_buffer_uri(&data_uri(&position_bytes(&self.positions)))
+    }
+
+    /// Writes `path` with an embedded buffer.
+    pub fn write(&self, path: &Path) {
+        write_json(path, &self.json());
+    }
+}
+
+/// A unit right triangle in z = 0, counter-clockwise about +z.
+pub const TRIANGLE: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+
+/// An OBJ "wall" (one triangle, positions given as text so `nan` can be written) using
+/// material "paint" from `<stem>.mtl`, whose body is `mtl_body`.
+pub fn write_obj_with_material(dir: &Path, stem: &str, mtl_body: &str) -> PathBuf {
+    let obj = dir.join(format!("{stem}.obj"));
+    write_text(
+        &obj,
+        &format!("mtllib {stem}.mtl\no wall\nusemtl paint\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"),
+    );
+    write_text(
+        &dir.join(format!("{stem}.mtl")),
+        &format!("newmtl paint\n{mtl_body}\n"),
+    );
+    obj
+}
+
+/// The fixture `cube-embedded.gltf` with one more node, "sliver", whose mesh "sliver" is a
+/// single zero-area triangle (three collinear points inside the cube), appended to the scene.
+pub fn cube_with_sliver_json() -> Value {
+    let text = std::fs::read_to_string(fixture("cube-embedded.gltf")).expect("read the fixture");
+    let mut root: Value = serde_json::from_str(&text).expect("the fixture is JSON");
+    let sliver: [[f32; 3]; 3] = [[0.25, 0.25, 0.25], [0.5, 0.5, 0.5], [0.75, 0.75, 0.75]];
+    let bytes = position_bytes(&sliver);
+    let buffer = push(
+        &mut root["buffers"],
+        json!({ "byteLength": bytes.len(), "uri": data_uri(&bytes) }),
+    );
+    let view = push(
+        &mut root["bufferViews"],
+        json!({ "buffer": buffer, "byteLength": bytes.len() }),
+    );
+    let accessor = push(
+        &mut root["accessors"],
+        json!({
+            "bufferView": view, "componentType": 5126, "count": 3, "type": "VEC3",
+            "min": [0.25, 0.25, 0.25], "max": [0.75, 0.75, 0.75]
+        }),
+    );
+    let mesh = push(
+        &mut root["meshes"],
+        json!({ "name": "sliver", "primitives": [{ "attributes": { "POSITION": accessor }, "material": 1 }] }),
+    );
+    let node = push(
+        &mut root["nodes"],
+        json!({ "name": "sliver", "mesh": mesh }),
+    );
+    let scene = root["scene"].as_u64().unwrap_or(0) as usize;
+    push(&mut root["scenes"][scene]["nodes"], json!(node));
+    root
+}
+
+/// Appends `value` to the JSON array `array` and returns its index.
+fn push(array: &mut Value, value: Value) -> usize {
+    let array = array.as_array_mut().expect("a JSON array");
+    array.push(value);
+    array.len() - 1
+}
