@@ -35,7 +35,7 @@ impl Default for ContourOptions {
         ContourOptions {
             segments: 1,
             order: 3,
-            near_ratio: 4.0,
+            near_ratio: 8.0,
         }
     }
 }
