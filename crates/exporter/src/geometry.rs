@@ -35,7 +35,7 @@ pub(crate) fn build(bake: &Bake) -> Result<Vec<NodeMesh>, ExportError> {
     check_bake(bake)?;
     let groups = group_elements(bake.scene, bake.mesh);
     let smoothed = match bake.shading {
-        Shading::Smooth => Some(smooth_vertex_values(bake.mesh, bake.radiosity)),
+        Shading::Smooth => Some(bake.mesh.smooth(bake.radiosity)),
         Shading::Flat => None,
     };
     let mut node_meshes: Vec<NodeMesh> = Vec::new();
@@ -71,33 +71,6 @@ fn group_elements(scene: &Scene, mesh: &ElementMesh) -> Groups {
             .push(index);
     }
     groups
-}
-
-/// One value per mesh vertex: the area-weighted average of the values of the elements that
-/// use it (the paper's linear smoothing). Vertices no element uses get zero.
-// TODO: use `ElementMesh::smooth` once the mesher provides it.
-fn smooth_vertex_values(mesh: &ElementMesh, element_values: &[[f64; 3]]) -> Vec<[f64; 3]> {
-    let mut sums = vec![[0.0; 3]; mesh.vertices.len()];
-    let mut weights = vec![0.0; mesh.vertices.len()];
-    for (element, value) in mesh.elements.iter().zip(element_values) {
-        for &corner in element.corner_indices() {
-            let corner = corner as usize;
-            for band in 0..3 {
-                sums[corner][band] += element.area * value[band];
-            }
-            weights[corner] += element.area;
-        }
-    }
-    sums.iter()
-        .zip(&weights)
-        .map(|(sum, &weight)| {
-            if weight > 0.0 {
-                sum.map(|s| s / weight)
-            } else {
-                [0.0; 3]
-            }
-        })
-        .collect()
 }
 
 /// Rejects a bake whose parts do not fit together, so the rest can index freely.
