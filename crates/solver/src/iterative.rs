@@ -31,10 +31,11 @@ pub struct IterativeOptions {
     /// Stop when the relative residual `‖(I − ρF) b − e‖₂ / ‖e‖₂` of a band is at most this.
     /// In (0, 1). The forward error is at most about `cond_∞ · tolerance`.
     ///
-    /// Rounding puts a floor under the residual that any solver, direct included, reaches:
-    /// about `√n ε ‖A‖ ‖b‖ / ‖e‖ ≈ √n ε cond`. For a closed scene with ρ = 0.9999
-    /// (cond ≈ 2·10⁴) and a few hundred elements that is ~5e-12, above the default: such a
-    /// scene then fails with [`SolveError::NotConverged`] unless the tolerance is raised.
+    /// Rounding puts a floor of roughly `ε ‖A‖ ‖b‖ / ‖e‖ ≤ ε cond` (times up to `√n`) under
+    /// the computed residual of any solver. For a closed scene with ρ = 0.9999 (cond ≈ 2·10⁴)
+    /// that is close to the default: on a 213-element box GMRES reached 9.6e-13 while the
+    /// direct solver's LU answer has 4.8e-12. Brighter or larger scenes can stop at the floor
+    /// and fail with [`SolveError::NotConverged`] unless the tolerance is raised.
     pub tolerance: f64,
     /// Budget of GMRES iterations (operator applications in the Arnoldi process; the true
     /// residual recomputed at each restart is not counted) per right-hand side.
