@@ -114,7 +114,9 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     if e.iter().all(|x| x.iter().all(|&v| v == 0.0)) {
         warnings.push("the scene has no emitters: every radiosity is 0".to_string());
     }
-    let f = solver::DenseMatrix::new(n, &matrix.data).map_err(|err| internal(err.into()))?;
+    let f = solver::DenseMatrix::new(n, &matrix.data)
+        .map_err(|err| internal(err.into()))?
+        .with_accuracy(form_factor::ROW_SUM_ACCURACY);
     let method = solver_method(cli);
     let solution = match method {
         SolverMethod::Direct => solver::solve_direct(&f, &rho, &e),

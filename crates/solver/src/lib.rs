@@ -103,6 +103,14 @@ pub trait Operator: Sync {
             }
         }
     }
+
+    /// A bound on the error of `F`'s row sums that the operator's producer knows (e.g. the
+    /// form-factor integrator's accuracy). It enters `η` (see the crate docs), so a system
+    /// whose answer that error could change entirely — `cond_∞ · ρ · accuracy ≥ 1` — is
+    /// refused instead of returned. 0 (the default) trusts `F` to round-off.
+    fn accuracy(&self) -> f64 {
+        0.0
+    }
 }
 
 /// A dense `n × n` form-factor matrix borrowed as a row-major slice: `data[i * n + j] = F_ij`.
@@ -110,6 +118,7 @@ pub trait Operator: Sync {
 pub struct DenseMatrix<'a> {
     n: usize,
     data: &'a [f64],
+    accuracy: f64,
 }
 
 impl<'a> DenseMatrix<'a> {
@@ -127,7 +136,19 @@ impl<'a> DenseMatrix<'a> {
                 value: data[k],
             });
         }
-        Ok(Self { n, data })
+        Ok(Self {
+            n,
+            data,
+            accuracy: 0.0,
+        })
+    }
+
+    /// States the known accuracy of `F`'s row sums (see [`Operator::accuracy`]).
+    pub fn with_accuracy(self, accuracy: f64) -> Self {
+        Self {
+            accuracy: accuracy.max(0.0),
+            ..self
+        }
     }
 
     /// Row `i` of `F`: `F_i0 .. F_i(n-1)`. Panics when `i >= n`.
@@ -151,6 +172,10 @@ fn dot(row: &[f64], x: &[f64]) -> f64 {
 }
 
 impl Operator for DenseMatrix<'_> {
+    fn accuracy(&self) -> f64 {
+        self.accuracy
+    }
+
     fn n(&self) -> usize {
         self.n
     }
@@ -398,14 +423,15 @@ fn row_sums<O: Operator + ?Sized>(op: &O) -> Vec<f64> {
     s
 }
 
-/// `η = max(n ε, max_i (ρ_i s_i − 1))`: the relative error of band `c`'s operator that can be
-/// seen without geometry. Physically `ρ_i s_i ≤ 1` (eq. 15: `s_i ≤ 1`), so a row reflecting
-/// more than all of its light is integration error of at least that size.
-fn operator_error(rho: &[[f64; BANDS]], s: &[f64], c: usize) -> f64 {
+/// `η = max(n ε, max_i (ρ_i s_i − 1), max_i ρ_i · accuracy)`: the relative error of band `c`'s
+/// operator. Physically `ρ_i s_i ≤ 1` (eq. 15: `s_i ≤ 1`), so a row reflecting more than all of
+/// its light is integration error of at least that size; `accuracy` is what the producer of `F`
+/// states about its row sums ([`Operator::accuracy`]).
+fn operator_error(rho: &[[f64; BANDS]], s: &[f64], c: usize, accuracy: f64) -> f64 {
     let excess = rho
         .iter()
         .zip(s)
-        .map(|(r, s)| r[c] * s - 1.0)
+        .map(|(r, s)| (r[c] * s - 1.0).max(r[c] * accuracy))
         .fold(0.0f64, f64::max);
     (s.len() as f64 * f64::EPSILON).max(excess)
 }
@@ -550,7 +576,7 @@ fn solve_band_group(
             (x.col_as_slice(col), e_max)
         })
         .collect();
-    let eta = operator_error(rho, s, band);
+    let eta = operator_error(rho, s, band, f.accuracy());
     let condition = checked_condition(
         band,
         infinity_norm(f, rho, band),
