@@ -13,8 +13,9 @@
 //!   product Gauss–Legendre rule, `order` points per segment (3 × 3 = the paper's nine points);
 //! - **near or touching** segments, where ln r is (nearly) singular: the inner integral over Q
 //!   in closed form and the outer one by adaptive Gauss–Legendre (bisection until two levels
-//!   agree to 1e-14 of the pair's size), so an r → 0 at a shared vertex is integrated to
-//!   machine precision instead of converging slowly under uniform segments.
+//!   agree to 1e-14 of the pair's size, or to the rounding noise of the closed form), so an
+//!   r → 0 at a shared vertex is integrated to machine precision instead of converging slowly
+//!   under uniform segments.
 
 use glam::DVec3;
 
@@ -215,7 +216,9 @@ fn product_gauss(
 /// `∫_0^{L} ln|x − (c + t w)| dt` in closed form (w unit, L = |Q|):
 /// with t0 the projection of x on Q's line and h the distance to it,
 /// ∫ ln √((t−t0)² + h²) dt = ½ [X ln(X² + h²) − 2X + 2h atan(X/h)], X = t − t0.
-fn point_segment_log(x: DVec3, c: DVec3, w: DVec3, len: f64) -> f64 {
+/// Also returns the magnitude of the terms that cancel in it (its rounding scale): far from a
+/// short Q the two ends nearly cancel, and the result is only known to ~ε × that.
+fn point_segment_log(x: DVec3, c: DVec3, w: DVec3, len: f64) -> (f64, f64) {
     let r = x - c;
     let t0 = r.dot(w);
     let h = (r - w * t0).length();
@@ -227,13 +230,18 @@ fn point_segment_log(x: DVec3, c: DVec3, w: DVec3, len: f64) -> f64 {
         } else {
             0.0
         };
-        log_term - 2.0 * big_x + atan_term
+        (
+            log_term - 2.0 * big_x + atan_term,
+            log_term.abs() + 2.0 * big_x.abs() + atan_term.abs(),
+        )
     };
-    0.5 * (f(len - t0) - f(-t0))
+    let ((hi, hi_mag), (lo, lo_mag)) = (f(len - t0), f(-t0));
+    (0.5 * (hi - lo), 0.5 * (hi_mag + lo_mag))
 }
 
 /// Outer integral over P by adaptive Gauss–Legendre (interval bisection until two levels
-/// agree), inner integral over Q in closed form. The outer integrand is bounded and continuous
+/// agree to the tolerance or to the rounding noise of the closed form, whichever is larger),
+/// inner integral over Q in closed form. The outer integrand is bounded and continuous
 /// even where r → 0 (it behaves like s ln s there), so bisection converges; the near-singular
 /// spots (closest approach, Q's endpoints seen from P) are found by the bisection itself.
 fn semi_analytic(s0: DVec3, s1: DVec3, t0: DVec3, t1: DVec3, evaluations: &mut u64) -> f64 {
@@ -255,7 +263,7 @@ fn semi_analytic(s0: DVec3, s1: DVec3, t0: DVec3, t1: DVec3, evaluations: &mut u
     outer.adaptive(
         0.0,
         lp,
-        whole,
+        whole.0,
         ADAPTIVE_TOLERANCE * lp * lq.max(lp),
         0,
         evaluations,
@@ -268,6 +276,11 @@ const ADAPTIVE_ORDER: u32 = 8;
 const ADAPTIVE_TOLERANCE: f64 = 1e-14;
 /// Bisection depth limit (2⁻⁶⁰ of an edge is far below f64 resolution of the pair).
 const MAX_DEPTH: u32 = 60;
+/// Two levels that agree to this many ε of the magnitude of the cancelling terms agree to
+/// rounding, and bisecting further cannot improve them. Where that noise exceeds the tolerance
+/// (far from a short Q, |ln r| large) it does so at every level, both halving with the
+/// interval: without this stop the bisection went on to MAX_DEPTH everywhere (2⁶⁰ intervals).
+const ROUNDING_ULPS: f64 = 16.0;
 
 struct Outer {
     s0: DVec3,
@@ -279,20 +292,22 @@ struct Outer {
 }
 
 impl Outer {
-    fn gauss(&self, from: f64, to: f64, evaluations: &mut u64) -> f64 {
+    /// The Gauss rule on [from, to] and the magnitude of its cancelling terms.
+    fn gauss(&self, from: f64, to: f64, evaluations: &mut u64) -> (f64, f64) {
         let (mid, half) = ((from + to) * 0.5, (to - from) * 0.5);
-        let mut acc = 0.0;
+        let (mut acc, mut mag) = (0.0, 0.0);
         for &(xi, wi) in self.rule {
-            acc += wi
-                * point_segment_log(
-                    self.s0 + self.u * (mid + half * xi),
-                    self.t0,
-                    self.w,
-                    self.lq,
-                );
+            let (value, magnitude) = point_segment_log(
+                self.s0 + self.u * (mid + half * xi),
+                self.t0,
+                self.w,
+                self.lq,
+            );
+            acc += wi * value;
+            mag += wi * magnitude;
         }
         *evaluations += self.rule.len() as u64;
-        acc * half
+        (acc * half, mag * half)
     }
 
     fn adaptive(
@@ -305,11 +320,12 @@ impl Outer {
         evaluations: &mut u64,
     ) -> f64 {
         let mid = 0.5 * (from + to);
-        let (left, right) = (
+        let ((left, left_mag), (right, right_mag)) = (
             self.gauss(from, mid, evaluations),
             self.gauss(mid, to, evaluations),
         );
-        if depth >= MAX_DEPTH || (left + right - whole).abs() <= tol {
+        let noise = ROUNDING_ULPS * f64::EPSILON * (left_mag + right_mag);
+        if depth >= MAX_DEPTH || (left + right - whole).abs() <= tol.max(noise) {
             return left + right;
         }
         self.adaptive(from, mid, left, 0.5 * tol, depth + 1, evaluations)
@@ -392,7 +408,7 @@ mod tests {
             let t = (k as f64 + 0.5) / n as f64;
             brute += (x - w * t).length().ln() / n as f64;
         }
-        assert!((point_segment_log(x, c, w, 1.0) - brute).abs() < 1e-6);
+        assert!((point_segment_log(x, c, w, 1.0).0 - brute).abs() < 1e-6);
     }
 
     #[test]
@@ -426,5 +442,41 @@ mod tests {
             let _ = (pz, qz);
         }
         assert!((s - reference).abs() < 1e-9, "{s} vs {reference}");
+    }
+
+    /// Segment pairs at `ratio` × their length apart, in several orientations.
+    fn separated_pairs(ratio: f64) -> Vec<[DVec3; 4]> {
+        let dirs = [
+            DVec3::X,
+            DVec3::Y,
+            DVec3::Z,
+            DVec3::new(1.0, 1.0, 0.0).normalize(),
+            DVec3::new(0.3, -0.5, 0.8).normalize(),
+        ];
+        let offsets = [DVec3::X, DVec3::Y, DVec3::new(1.0, 1.0, 1.0).normalize()];
+        let mut pairs = Vec::new();
+        for &u in &dirs {
+            for &w in &dirs {
+                for &off in &offsets {
+                    let c = u * 0.5 + off * (ratio + 1.0);
+                    if segment_distance(DVec3::ZERO, u, c, c + w) >= ratio {
+                        pairs.push([DVec3::ZERO, u, c, c + w]);
+                    }
+                }
+            }
+        }
+        pairs
+    }
+
+    #[test]
+    fn semi_analytic_stops_at_the_rounding_noise_of_its_closed_form() {
+        // Far from Q the two ends of the closed form cancel to ~ε × (R ln R): the bisection
+        // used to chase a tolerance below that noise down to depth 60. Now it stops at once.
+        for [a, b, c, d] in separated_pairs(256.0) {
+            let mut e = 0;
+            let s = semi_analytic(a, b, c, d, &mut e);
+            assert!(e <= 24 * 4, "{e} evaluations");
+            assert!((s - brute(a, b, c, d, 2)).abs() < 1e-12, "{s}");
+        }
     }
 }
