@@ -95,6 +95,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     let contour = ContourOptions {
         segments: cli.ff_segments,
         order: cli.ff_order,
+        auto_order: !cli.ff_fixed_order,
         ..ContourOptions::default()
     };
     let bar = progress_bar(cli.quiet, n as u64, "form factors");
@@ -266,6 +267,7 @@ fn options_json(cli: &Cli, subdivision: Subdivision, contour: ContourOptions) ->
         "exposure": cli.exposure,
         "ff_segments": contour.segments,
         "ff_order": contour.order,
+        "ff_auto_order": contour.auto_order,
         "ff_near_ratio": contour.near_ratio,
         "output": cli.output.display().to_string(),
     })
