@@ -188,6 +188,7 @@ def render(png, width, height, view):
     scene.world = world
     world.color = BACKGROUND
     scene.render.film_transparent = False
+    scene.render.dither_intensity = 0.0  # exact colours, not noise
     scene.render.image_settings.file_format = "PNG"
     scene.render.image_settings.color_mode = "RGB"
     scene.render.image_settings.color_depth = "8"
