@@ -35,7 +35,7 @@ pub const DEFAULT_VIEW: [f64; 3] = [0.0, 0.0, -1.0];
 /// Linear RGB behind the scene (a dark grey, so black surfaces still show).
 pub const BACKGROUND: [f64; 3] = [0.02; 3];
 /// Largest width or height accepted.
-pub const MAX_SIZE: u32 = 16384;
+pub const MAX_SIZE: u32 = 8192;
 
 /// How to render.
 #[derive(Clone, Copy, Debug, PartialEq)]

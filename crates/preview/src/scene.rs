@@ -82,9 +82,6 @@ impl Scene {
     }
 }
 
-/// Deeper node hierarchies are refused (a cycle would otherwise never end).
-const MAX_DEPTH: usize = 1024;
-
 /// Loads the default scene of a `.gltf` or `.glb` file (the first scene when none is the
 /// default). Textures are not decoded.
 pub fn load(path: &Path, source: ColorSource) -> Result<Scene, PreviewError> {
@@ -107,17 +104,23 @@ pub fn load(path: &Path, source: ColorSource) -> Result<Scene, PreviewError> {
         .ok_or_else(|| invalid("the file has no scene".to_string()))?;
 
     let mut out = Scene::default();
-    let mut stack: Vec<(gltf::Node, Mat4, usize)> = scene
+    let mut stack: Vec<(gltf::Node, Mat4)> = scene
         .nodes()
-        .map(|n| (n, math::IDENTITY, 0))
+        .map(|n| (n, math::IDENTITY))
         .collect::<Vec<_>>();
     // Depth first, in the file's order: the stack pops the last pushed first.
     stack.reverse();
-    while let Some((node, parent, depth)) = stack.pop() {
-        if depth > MAX_DEPTH {
-            return Err(invalid(format!(
-                "the node hierarchy is deeper than {MAX_DEPTH} (a cycle?)"
-            )));
+    // glTF's hierarchy is a strict tree: a node reached twice means a cycle or a shared child.
+    let mut visited = vec![false; document.nodes().len()];
+    while let Some((node, parent)) = stack.pop() {
+        match visited.get_mut(node.index()) {
+            Some(seen) if !*seen => *seen = true,
+            _ => {
+                return Err(invalid(format!(
+                    "node {} appears twice in the scene's hierarchy (a cycle or a shared child)",
+                    node.index()
+                )))
+            }
         }
         let local = node.transform().matrix().map(|c| c.map(f64::from));
         let world = math::multiply(&parent, &local);
@@ -147,7 +150,7 @@ pub fn load(path: &Path, source: ColorSource) -> Result<Scene, PreviewError> {
         }
         let children: Vec<_> = node.children().collect();
         for child in children.into_iter().rev() {
-            stack.push((child, world, depth + 1));
+            stack.push((child, world));
         }
     }
     Ok(out)

@@ -477,6 +477,17 @@ fn errors_name_the_problem_and_leave_no_files() {
     let error = render_file(&empty, &Options::default()).expect_err("nothing to draw");
     assert!(error.to_string().contains("no triangles"), "{error}");
 
+    // A node that is its own child: refused, not followed forever.
+    let cycle = write_scene(
+        dir.path(),
+        "cycle",
+        &[Node::square(0.0, 0.0, 1.0, 1.0, 0.0, GREY).with_transform(json!({ "children": [0] }))],
+        None,
+    );
+    let error = render_file(&cycle, &Options::default()).expect_err("a cycle");
+    assert!(error.is_input_error());
+    assert!(error.to_string().contains("appears twice"), "{error}");
+
     let preview = render_file(&square, &Options::default()).expect("render");
     let out = tempfile::tempdir().expect("a temporary directory");
     let error = write_png(
