@@ -2,6 +2,7 @@
 //! (importer → mesher → form-factor → solver → exporter); all the work is in the crates.
 
 mod pipeline;
+mod preview_cli;
 
 use clap::{CommandFactory, Parser, ValueEnum};
 use std::path::PathBuf;
@@ -19,6 +20,9 @@ use std::process::ExitCode;
 /// Exit codes: 0 ok; 1 bad input (unreadable or malformed scene, invalid values, no finite
 /// solution, iterative solver not converged); 2 usage error; 3 internal or output error (OUT
 /// could not be written).
+///
+/// To look at a bake with no viewer installed: `bake preview OUT.gltf OUT.png` renders it
+/// (see `bake preview --help`).
 #[derive(Parser, Debug)]
 #[command(name = "bake", version, about, long_about, max_term_width = 100)]
 pub struct Cli {
@@ -127,6 +131,9 @@ pub enum Shading {
 }
 
 fn main() -> ExitCode {
+    if std::env::args_os().nth(1).is_some_and(|a| a == "preview") {
+        return preview_cli::main(std::env::args_os().skip(1));
+    }
     let cli = match Cli::try_parse().and_then(check_solver_options) {
         Ok(cli) => cli,
         Err(e) => {
