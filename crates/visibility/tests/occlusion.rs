@@ -1,0 +1,372 @@
+//! Occlusion on small scenes with known answers: the paper's cube (nothing to occlude), a
+//! full and a half occluder between parallel squares, a block on a floor (contact lines),
+//! thin walls, coplanar neighbours, and independence from units and position.
+
+mod common;
+
+use bake_visibility::{
+    pair_seed, Counters, Estimator, Occluders, Patch, Visibility, DEFAULT_SAMPLES,
+};
+use common::{cube, polygon, rect_z};
+use form_factor::{polygon_pair, ContourOptions};
+use glam::DVec3;
+use importer::Polygon;
+use mesher::{mesh, ElementMesh, Subdivision};
+
+fn patch(p: &Polygon, index: usize) -> Patch {
+    Patch::new(&p.vertices, p.normal, index).unwrap()
+}
+
+/// Visibility of every element pair (i < j), summed into counters.
+fn all_pairs(occluders: &Occluders, m: &ElementMesh, samples: u32) -> (Vec<Visibility>, Counters) {
+    let pairs = occluders.occludable_pairs();
+    let mut counters = Counters::default();
+    let mut out = Vec::new();
+    for i in 0..m.elements.len() {
+        for j in i + 1..m.elements.len() {
+            let v = occluders.element_pair(&pairs, m, i, j, samples);
+            counters.add(&v);
+            out.push(v);
+        }
+    }
+    (out, counters)
+}
+
+#[test]
+fn the_papers_cube_casts_no_rays() {
+    let walls = cube();
+    let occluders = Occluders::new(&walls).unwrap();
+    let pairs = occluders.occludable_pairs();
+    assert!(pairs.is_empty());
+    assert_eq!(pairs.facing_pairs(), 15);
+    let effects = pairs.effects();
+    assert!(!effects.occlusion, "{}", effects.reason);
+    for a in 0..6 {
+        for b in 0..6 {
+            let (pa, pb) = (occluders.polygon(a), occluders.polygon(b));
+            assert!(!occluders.can_occlude(&pa, &pb), "walls {a} and {b}");
+        }
+    }
+    let m = mesh(&walls, Subdivision::Count(4)).unwrap();
+    let (visibility, counters) = all_pairs(&occluders, &m, DEFAULT_SAMPLES);
+    assert!(visibility.iter().all(|v| *v == Visibility::UNOCCLUDED));
+    let n = m.elements.len() as u64;
+    assert_eq!(
+        counters,
+        Counters {
+            pairs_tested: n * (n - 1) / 2,
+            pairs_occludable: 0,
+            rays_cast: 0
+        }
+    );
+}
+
+/// Two unit squares facing each other at z = 0 and z = 1, and `occluders` between them.
+fn squares_with(occluders: Vec<Polygon>) -> Vec<Polygon> {
+    let mut scene = vec![
+        rect_z([0.0, 1.0], [0.0, 1.0], 0.0, true, 0),
+        rect_z([0.0, 1.0], [0.0, 1.0], 1.0, false, 1),
+    ];
+    scene.extend(occluders);
+    scene
+}
+
+#[test]
+fn a_larger_square_between_parallel_squares_hides_them_exactly() {
+    for up in [true, false] {
+        let scene = squares_with(vec![rect_z([-0.5, 1.5], [-0.5, 1.5], 0.5, up, 2)]);
+        let occluders = Occluders::new(&scene).unwrap();
+        let (a, b) = (patch(&scene[0], 0), patch(&scene[1], 1));
+        assert!(occluders.can_occlude(&a, &b));
+        let v = occluders.visibility(&a, &b, DEFAULT_SAMPLES, 1);
+        assert_eq!(v.fraction, 0.0);
+        assert_eq!(v.rays, DEFAULT_SAMPLES);
+        // Element level: every pair across is hidden, exactly.
+        let m = mesh(&scene, Subdivision::Count(2)).unwrap();
+        let pairs = occluders.occludable_pairs();
+        for i in 0..4 {
+            for j in 4..8 {
+                let v = occluders.element_pair(&pairs, &m, i, j, DEFAULT_SAMPLES);
+                assert!(v.occludable);
+                assert_eq!(v.fraction, 0.0);
+            }
+        }
+    }
+    // Without the occluder: not occludable, exactly visible.
+    let scene = squares_with(vec![]);
+    let occluders = Occluders::new(&scene).unwrap();
+    let (a, b) = (patch(&scene[0], 0), patch(&scene[1], 1));
+    assert!(!occluders.can_occlude(&a, &b));
+    assert_eq!(
+        occluders.visibility(&a, &b, DEFAULT_SAMPLES, 1).fraction,
+        1.0
+    );
+}
+
+/// The occluder covers x < 0.5 at z = 0.5: the point reflection through the pair's centre
+/// swaps hidden and visible point pairs and keeps the kernel, so exactly half of F is visible.
+/// A straight shadow edge through the middle of both elements is the hardest case for point
+/// sampling (fraction error ≈ 0.5 n^-1.5 with n² rays), so this uses the most rays, 31².
+#[test]
+fn a_half_occluder_hides_half_the_form_factor() {
+    let scene = squares_with(vec![rect_z([-1.0, 0.5], [-1.0, 2.0], 0.5, true, 2)]);
+    let occluders = Occluders::new(&scene).unwrap();
+    let (a, b) = (patch(&scene[0], 0), patch(&scene[1], 1));
+    let f = polygon_pair(
+        &scene[0].vertices,
+        &scene[1].vertices,
+        &ContourOptions::default(),
+    );
+    assert!(
+        (f - 0.199_824_5).abs() < 1e-6,
+        "unit squares at distance 1: {f}"
+    );
+    for seed in 0..8 {
+        let v = occluders.visibility(&a, &b, 1024, pair_seed(0, 1) + seed);
+        assert_eq!(v.rays, 961);
+        let error = (f * v.fraction - f / 2.0).abs() / (f / 2.0);
+        assert!(
+            error < 0.02,
+            "seed {seed}: fraction {} ({error:.4})",
+            v.fraction
+        );
+    }
+}
+
+/// An axis-aligned quad at `at` on `axis` (0 = x, 1 = y, 2 = z), facing `+axis` if `positive`,
+/// spanning u and v on the next two axes (cyclically).
+fn rect(axis: usize, positive: bool, at: f64, u: [f64; 2], v: [f64; 2], index: usize) -> Polygon {
+    let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
+    let point = |s: f64, t: f64| {
+        let mut p = [0.0; 3];
+        p[axis] = at;
+        p[a] = s;
+        p[b] = t;
+        DVec3::from(p)
+    };
+    let mut c = vec![
+        point(u[0], v[0]),
+        point(u[1], v[0]),
+        point(u[1], v[1]),
+        point(u[0], v[1]),
+    ];
+    if !positive {
+        c.reverse();
+    }
+    polygon(&c, index)
+}
+
+/// A 4 × 4 floor (z = 0, facing up), a ceiling at z = 2, and a unit block standing on the
+/// floor (x, y in −0.5..0.5, z in 0..1): top and four sides facing out, no bottom.
+fn block_on_floor() -> Vec<Polygon> {
+    let span = [-2.0, 2.0];
+    let b = [-0.5, 0.5];
+    vec![
+        rect_z(span, span, 0.0, true, 0),
+        rect_z(span, span, 2.0, false, 1),
+        rect_z(b, b, 1.0, true, 2),
+        rect(0, true, 0.5, b, [0.0, 1.0], 3),
+        rect(0, false, -0.5, b, [0.0, 1.0], 4),
+        rect(1, true, 0.5, [0.0, 1.0], b, 5),
+        rect(1, false, -0.5, [0.0, 1.0], b, 6),
+    ]
+}
+
+/// The element of `m` on `polygon` whose centroid is nearest to `at`.
+fn element_at(m: &ElementMesh, polygon: u32, at: DVec3) -> usize {
+    (0..m.elements.len())
+        .filter(|&e| m.elements[e].polygon == polygon)
+        .min_by(|&a, &b| {
+            let d = |e: usize| m.elements[e].centroid.distance(at);
+            d(a).total_cmp(&d(b))
+        })
+        .unwrap()
+}
+
+#[test]
+fn a_block_on_the_floor_hides_what_is_under_it_and_nothing_beside_it() {
+    let scene = block_on_floor();
+    let occluders = Occluders::new(&scene).unwrap();
+    let pairs = occluders.occludable_pairs();
+    // 0.5 m elements: the block's footprint covers 2 × 2 floor elements.
+    let floor_ceiling = mesh(&scene, Subdivision::Count(8)).unwrap();
+    let under = element_at(&floor_ceiling, 0, DVec3::new(0.25, 0.25, 0.0));
+    let beside = element_at(&floor_ceiling, 0, DVec3::new(0.75, 0.25, 0.0));
+    let above_beside = element_at(&floor_ceiling, 1, DVec3::new(0.75, 0.25, 2.0));
+    let ceiling: Vec<usize> = (0..floor_ceiling.elements.len())
+        .filter(|&e| floor_ceiling.elements[e].polygon == 1)
+        .collect();
+    // Under the block: every ceiling element is hidden, exactly (rays leave through the sides
+    // right at the contact line and must not slip through the seam).
+    for &c in &ceiling {
+        let v = occluders.element_pair(&pairs, &floor_ceiling, under, c, DEFAULT_SAMPLES);
+        assert!(v.occludable);
+        assert_eq!(v.fraction, 0.0, "under the block to ceiling element {c}");
+    }
+    // Just outside, to the ceiling straight above: nothing can come between, and the rays agree.
+    let v = occluders.element_pair(
+        &pairs,
+        &floor_ceiling,
+        beside,
+        above_beside,
+        DEFAULT_SAMPLES,
+    );
+    assert_eq!(v, Visibility::UNOCCLUDED);
+    let (a, b) = (
+        Patch::element(&floor_ceiling, beside),
+        Patch::element(&floor_ceiling, above_beside),
+    );
+    assert_eq!(occluders.visibility(&a, &b, 256, 9).fraction, 1.0);
+    // Some ceiling elements beyond the block are partly hidden from `beside`, none fully.
+    let partly = ceiling
+        .iter()
+        .map(|&c| occluders.element_pair(&pairs, &floor_ceiling, beside, c, DEFAULT_SAMPLES))
+        .filter(|v| v.fraction > 0.0 && v.fraction < 1.0)
+        .count();
+    assert!(partly > 0);
+}
+
+#[test]
+fn pairs_sharing_a_contact_line_are_not_occludable() {
+    let scene = block_on_floor();
+    let occluders = Occluders::new(&scene).unwrap();
+    let pairs = occluders.occludable_pairs();
+    let m = mesh(&scene, Subdivision::Count(8)).unwrap();
+    let mut checked = 0;
+    for side in 3..7u32 {
+        for s in (0..m.elements.len()).filter(|&e| m.elements[e].polygon == side) {
+            let (a, sa) = (Patch::element(&m, s), &m.elements[s]);
+            if sa.centroid.z > 0.125 {
+                continue; // only side elements touching the floor
+            }
+            for f in (0..m.elements.len()).filter(|&e| m.elements[e].polygon == 0) {
+                let b = Patch::element(&m, f);
+                let touching = a
+                    .corners()
+                    .iter()
+                    .filter(|p| p.z == 0.0)
+                    .any(|p| b.corners().iter().any(|q| q.distance(*p) < 1e-12));
+                let facing = (m.elements[f].centroid - sa.centroid).dot(sa.normal) > 0.0;
+                if !(touching && facing) {
+                    continue;
+                }
+                assert!(!occluders.can_occlude(&a, &b), "side {s} / floor {f}");
+                assert!(!pairs.can_occlude(&occluders, &a, &b));
+                let v = occluders.element_pair(&pairs, &m, s, f, DEFAULT_SAMPLES);
+                assert_eq!(v, Visibility::UNOCCLUDED);
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked >= 4 * 8, "{checked}");
+}
+
+#[test]
+fn no_ray_slips_through_the_contact_line() {
+    let scene = block_on_floor();
+    let occluders = Occluders::new(&scene).unwrap();
+    let lift = DVec3::Z * occluders.ray_offset();
+    let ceiling = |k: f64| DVec3::new(2.0 * (k * 0.37).sin(), 2.0 * (k * 0.91).cos(), 2.0);
+    for k in 0..2000 {
+        let k = k as f64;
+        // Floor points under the block, down to 1e-9 from its sides, to anywhere on the ceiling.
+        let d = 10f64.powf(-9.0 + 8.0 * ((k * 0.618) % 1.0));
+        let under = DVec3::new(0.5 - d, 0.5 * ((k * 0.13).sin()), 0.0) + lift;
+        assert!(occluders.segment_blocked(under, ceiling(k) - lift, [0, 1]));
+        // Just outside, straight up: free. (Closer than 1e-9 × the scene size a point counts
+        // as on the block's edge, which blocks: the tolerance errs towards no leaks.)
+        let d = d.max(1e-7);
+        let beside = DVec3::new(0.5 + d, under.y, 0.0) + lift;
+        let up = DVec3::new(beside.x, beside.y, 2.0) - lift;
+        assert!(!occluders.segment_blocked(beside, up, [0, 1]), "d = {d}");
+    }
+}
+
+#[test]
+fn thin_walls_block_from_both_sides() {
+    let v = |x: f64, positive: bool, index| rect(0, positive, x, [0.0, 1.0], [0.0, 1.0], index);
+    for wall_faces_a in [true, false] {
+        let scene = vec![
+            v(0.0, true, 0),
+            v(2.0, false, 1),
+            rect(0, !wall_faces_a, 1.0, [-1.0, 2.0], [-1.0, 2.0], 2),
+        ];
+        let occluders = Occluders::new(&scene).unwrap();
+        let (a, b) = (patch(&scene[0], 0), patch(&scene[1], 1));
+        assert!(occluders.can_occlude(&a, &b));
+        for (from, to) in [(a, b), (b, a)] {
+            let vis = occluders.visibility(&from, &to, DEFAULT_SAMPLES, 3);
+            assert_eq!(vis.fraction, 0.0);
+            assert_eq!(vis.rays, DEFAULT_SAMPLES);
+        }
+    }
+}
+
+#[test]
+fn coplanar_neighbours_never_shadow_each_other() {
+    // Two floor tiles side by side, the first one's back side (a double-sided twin), a ceiling.
+    let mut twin = rect_z([0.0, 1.0], [0.0, 1.0], 0.0, false, 2);
+    twin.origin.side = importer::Side::Back;
+    let scene = vec![
+        rect_z([0.0, 1.0], [0.0, 1.0], 0.0, true, 0),
+        rect_z([1.0, 2.0], [0.0, 1.0], 0.0, true, 1),
+        twin,
+        rect_z([0.0, 2.0], [0.0, 1.0], 1.0, false, 3),
+    ];
+    let occluders = Occluders::new(&scene).unwrap();
+    let pairs = occluders.occludable_pairs();
+    assert!(pairs.is_empty(), "{:?}", pairs.pairs());
+    let (tile, ceiling) = (patch(&scene[0], 0), patch(&scene[3], 3));
+    assert_eq!(occluders.visibility(&tile, &ceiling, 1024, 5).fraction, 1.0);
+    // Grazing rays along the floor, from one tile over the other.
+    let lift = DVec3::Z * occluders.ray_offset();
+    for k in 1..100 {
+        let x = k as f64 / 50.0;
+        let p = DVec3::new(0.01, 0.5, 0.0) + lift;
+        let q = DVec3::new(x, 0.3, 0.0) + lift;
+        assert!(!occluders.segment_blocked(p, q, [0, 1]));
+    }
+}
+
+/// Scaling and moving the scene changes nothing but rounding.
+#[test]
+fn results_do_not_depend_on_units_or_position() {
+    let base = squares_with(vec![rect_z([-1.0, 0.5], [-1.0, 2.0], 0.5, true, 2)]);
+    let fraction = |scale: f64, shift: f64| {
+        let scene: Vec<Polygon> = base
+            .iter()
+            .enumerate()
+            .map(|(k, p)| {
+                let c: Vec<DVec3> = p.vertices.iter().map(|v| *v * scale + shift).collect();
+                polygon(&c, k)
+            })
+            .collect();
+        let occluders = Occluders::new(&scene).unwrap();
+        let (a, b) = (patch(&scene[0], 0), patch(&scene[1], 1));
+        occluders.visibility(&a, &b, 256, 11).fraction
+    };
+    let reference = fraction(1.0, 0.0);
+    for (scale, shift) in [(1e-3, 0.0), (1e3, 0.0), (1e-3, 1e2), (1e3, -1e6)] {
+        let f = fraction(scale, shift);
+        assert!(
+            (f - reference).abs() < 1e-9,
+            "× {scale} + {shift}: {f} vs {reference}"
+        );
+    }
+}
+
+/// Both estimators give exactly 0 and 1 at the extremes and agree on the symmetric half.
+#[test]
+fn estimators_agree_at_the_extremes() {
+    let half = squares_with(vec![rect_z([-1.0, 0.5], [-1.0, 2.0], 0.5, true, 2)]);
+    let occluders = Occluders::new(&half).unwrap();
+    let (a, b) = (patch(&half[0], 0), patch(&half[1], 1));
+    for estimator in [Estimator::KernelWeighted, Estimator::Uniform] {
+        let v = occluders.visibility_with(&a, &b, 1024, 2, estimator);
+        assert!(
+            (v.fraction - 0.5).abs() < 0.01,
+            "{estimator:?}: {}",
+            v.fraction
+        );
+    }
+}
