@@ -24,7 +24,8 @@ use glam::DVec3;
 use mesher::ElementMesh;
 use polygon::Poly;
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+pub use visibility::{Counters, OccludablePairs, Occluders, Visibility};
 
 /// Normals with `n_i · n_j ≥ 1 − PARALLEL` count as parallel (angle ≤ 1.4e-7 rad). Two
 /// elements tilted by θ see each other with F ~ 0.1 θ² at most (e.g. 0.078 θ² for unit squares
@@ -55,17 +56,33 @@ pub struct Stats {
     pub pairs_clipped: u64,
     /// Kernel evaluations (ln r, or one closed-form segment integral).
     pub evaluations: u64,
+    /// Occlusion work over the facing pairs: pairs tested, pairs occludable, rays cast.
+    pub visibility: Counters,
 }
 
 /// Form factors between the elements of one mesh.
 pub struct FormFactors<'a> {
     mesh: &'a ElementMesh,
     options: ContourOptions,
+    occlusion: Option<Occlusion<'a>>,
 }
 
 impl<'a> FormFactors<'a> {
+    /// Form factors of a scene where nothing occludes (the paper's assumption).
     pub fn new(mesh: &'a ElementMesh, options: ContourOptions) -> Self {
-        FormFactors { mesh, options }
+        FormFactors {
+            mesh,
+            options,
+            occlusion: None,
+        }
+    }
+
+    /// Hidden surfaces: every facing pair that some polygon can come between gets the exact
+    /// contour value times its visible fraction (0 exactly when fully hidden); pairs nothing
+    /// can come between keep the exact value and cast no ray.
+    pub fn with_occlusion(mut self, occlusion: Occlusion<'a>) -> Self {
+        self.occlusion = Some(occlusion);
+        self
     }
 
     /// Number of elements.
@@ -77,10 +94,38 @@ impl<'a> FormFactors<'a> {
         self.mesh.elements.is_empty()
     }
 
-    /// `A_i F_ij` (= `A_j F_ji`): the symmetric double contour integral over 2π.
-    pub fn area_weighted(&self, i: usize, j: usize) -> (f64, PairKind, u64) {
+    /// `A_i F_ij` (= `A_j F_ji`): the symmetric double contour integral over 2π, times the
+    /// pair's visible fraction when occlusion is on ([`FormFactors::with_occlusion`]).
+    pub fn area_weighted(&self, i: usize, j: usize) -> PairResult {
+        let Some(facing) = self.facing(i, j) else {
+            return PairResult::CULLED;
+        };
+        let visibility = match &self.occlusion {
+            Some(o) => o
+                .occluders
+                .element_pair(o.pairs, self.mesh, i, j, o.samples),
+            None => Visibility::UNOCCLUDED,
+        };
+        // Fully hidden pairs are exactly 0: no integral needed.
+        let (value, evaluations) = if visibility.fraction == 0.0 {
+            (0.0, 0)
+        } else {
+            let (g, evaluations) = self.contour(&facing);
+            (g * visibility.fraction, evaluations)
+        };
+        PairResult {
+            value,
+            kind: facing.kind,
+            evaluations,
+            visibility,
+        }
+    }
+
+    /// The pair in its own frame, each element clipped to the part in front of the other's
+    /// plane; `None` when they cannot exchange light (same element, back-facing, coplanar).
+    fn facing(&self, i: usize, j: usize) -> Option<Facing> {
         if i == j {
-            return (0.0, PairKind::Culled, 0);
+            return None;
         }
         let (ni, nj) = (self.mesh.elements[i].normal, self.mesh.elements[j].normal);
         // Parallel planes facing the same way never see each other: each lies behind or in the
@@ -88,7 +133,7 @@ impl<'a> FormFactors<'a> {
         // where their vertices are only known to the rounding of large world coordinates
         // (a scene far from the origin), which the clip tolerance below cannot resolve.
         if ni.dot(nj) >= 1.0 - PARALLEL {
-            return (0.0, PairKind::Culled, 0);
+            return None;
         }
         let (pi, pj) = (self.poly(i), self.poly(j));
         // Work relative to the pair's own frame: origin between the centroids, unit = their
@@ -104,37 +149,36 @@ impl<'a> FormFactors<'a> {
         // Clip each element to the half-space in front of the other (eq. 13 assumes both
         // surfaces see each other wholly). Tolerance relative to the pair's size.
         let tol = 1e-11 * (pi.extent().max(pj.extent())).max(1.0);
-        let (ci_, clipped_i) = match pi.clip_front(pj.vertex(0), nj, tol) {
-            Some(c) => c,
-            None => return (0.0, PairKind::Culled, 0),
-        };
-        let (cj_, clipped_j) = match pj.clip_front(pi.vertex(0), ni, tol) {
-            Some(c) => c,
-            None => return (0.0, PairKind::Culled, 0),
-        };
-        let mut evaluations = 0;
-        let mut sum = 0.0;
-        for a in 0..ci_.len() {
-            let (p0, p1) = (ci_.vertex(a), ci_.vertex((a + 1) % ci_.len()));
-            for b in 0..cj_.len() {
-                let (q0, q1) = (cj_.vertex(b), cj_.vertex((b + 1) % cj_.len()));
-                sum += contour::edge_pair(p0, p1, q0, q1, &self.options, &mut evaluations);
-            }
-        }
-        // Eq. 13 with both contours counter-clockwise about their own normals. Quadrature
-        // noise can leave a tiny negative value for a pair that barely sees itself: F ≥ 0.
-        let g = (sum / (2.0 * std::f64::consts::PI)).max(0.0) * unit * unit;
+        let (a, clipped_i) = pi.clip_front(pj.vertex(0), nj, tol)?;
+        let (b, clipped_j) = pj.clip_front(pi.vertex(0), ni, tol)?;
         let kind = if clipped_i || clipped_j {
             PairKind::Clipped
         } else {
             PairKind::Facing
         };
-        (g, kind, evaluations)
+        Some(Facing { a, b, unit, kind })
+    }
+
+    /// Eq. 13 over the (clipped) contours: `A_i F_ij` in world units, and kernel evaluations.
+    fn contour(&self, f: &Facing) -> (f64, u64) {
+        let mut evaluations = 0;
+        let mut sum = 0.0;
+        for a in 0..f.a.len() {
+            let (p0, p1) = (f.a.vertex(a), f.a.vertex((a + 1) % f.a.len()));
+            for b in 0..f.b.len() {
+                let (q0, q1) = (f.b.vertex(b), f.b.vertex((b + 1) % f.b.len()));
+                sum += contour::edge_pair(p0, p1, q0, q1, &self.options, &mut evaluations);
+            }
+        }
+        // Eq. 13 with both contours counter-clockwise about their own normals. Quadrature
+        // noise can leave a tiny negative value for a pair that barely sees itself: F ≥ 0.
+        let g = (sum / (2.0 * std::f64::consts::PI)).max(0.0) * f.unit * f.unit;
+        (g, evaluations)
     }
 
     /// `F_ij`: the fraction of the light leaving element i that reaches element j.
     pub fn pair(&self, i: usize, j: usize) -> f64 {
-        self.area_weighted(i, j).0 / self.mesh.elements[i].area
+        self.area_weighted(i, j).value / self.mesh.elements[i].area
     }
 
     /// Row i of F into `out` (length = number of elements), computed on demand.
@@ -142,9 +186,9 @@ impl<'a> FormFactors<'a> {
         let mut stats = Stats::default();
         let area = self.mesh.elements[i].area;
         for (j, f) in out.iter_mut().enumerate() {
-            let (g, kind, ev) = self.area_weighted(i, j);
-            *f = g / area;
-            stats.count(kind, ev);
+            let pair = self.area_weighted(i, j);
+            *f = pair.value / area;
+            stats.count(&pair);
         }
         stats
     }
@@ -160,22 +204,21 @@ impl<'a> FormFactors<'a> {
     pub fn dense_with_progress(&self, progress: &(dyn Fn(u64) + Sync)) -> DenseFormFactors {
         let n = self.len();
         let mut data = vec![0.0f64; n * n];
-        let pairs_integrated = AtomicU64::new(0);
-        let pairs_clipped = AtomicU64::new(0);
-        let evaluations = AtomicU64::new(0);
-        // Upper triangle: G_ij = A_i F_ij for j > i, each row by one task.
+        // Upper triangle: G_ij = A_i F_ij for j > i, each row by one task; counters are sums
+        // of integers, so their totals do not depend on the order rows finish in.
+        let stats = Mutex::new(Stats::default());
         data.par_chunks_mut(n.max(1))
             .enumerate()
             .for_each(|(i, row)| {
                 let mut local = Stats::default();
                 for (j, g) in row.iter_mut().enumerate().skip(i + 1) {
-                    let (value, kind, ev) = self.area_weighted(i, j);
-                    *g = value;
-                    local.count(kind, ev);
+                    let pair = self.area_weighted(i, j);
+                    *g = pair.value;
+                    local.count(&pair);
                 }
-                pairs_integrated.fetch_add(local.pairs_integrated, Ordering::Relaxed);
-                pairs_clipped.fetch_add(local.pairs_clipped, Ordering::Relaxed);
-                evaluations.fetch_add(local.evaluations, Ordering::Relaxed);
+                if let Ok(mut total) = stats.lock() {
+                    total.merge(&local);
+                }
                 progress(1);
             });
         // Reciprocity: F_ij = G_ij / A_i and F_ji = G_ij / A_j.
@@ -187,12 +230,7 @@ impl<'a> FormFactors<'a> {
                 data[j * n + i] = g / areas[j];
             }
         }
-        let stats = Stats {
-            pairs: (n as u64) * (n as u64).saturating_sub(1) / 2,
-            pairs_integrated: pairs_integrated.into_inner(),
-            pairs_clipped: pairs_clipped.into_inner(),
-            evaluations: evaluations.into_inner(),
-        };
+        let stats = stats.into_inner().unwrap_or_default();
         DenseFormFactors { n, data, stats }
     }
 
@@ -207,10 +245,13 @@ impl<'a> FormFactors<'a> {
 }
 
 impl Stats {
-    fn count(&mut self, kind: PairKind, evaluations: u64) {
+    fn count(&mut self, pair: &PairResult) {
         self.pairs += 1;
-        self.evaluations += evaluations;
-        match kind {
+        self.evaluations += pair.evaluations;
+        if pair.kind != PairKind::Culled {
+            self.visibility.add(&pair.visibility);
+        }
+        match pair.kind {
             PairKind::Culled => {}
             PairKind::Facing => self.pairs_integrated += 1,
             PairKind::Clipped => {
@@ -219,6 +260,52 @@ impl Stats {
             }
         }
     }
+
+    fn merge(&mut self, other: &Stats) {
+        self.pairs += other.pairs;
+        self.pairs_integrated += other.pairs_integrated;
+        self.pairs_clipped += other.pairs_clipped;
+        self.evaluations += other.evaluations;
+        self.visibility = self.visibility.merge(other.visibility);
+    }
+}
+
+/// One pair's result.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PairResult {
+    /// `A_i F_ij` (visible part).
+    pub value: f64,
+    pub kind: PairKind,
+    /// Kernel evaluations of the contour integral.
+    pub evaluations: u64,
+    /// What the occlusion test decided ([`Visibility::UNOCCLUDED`] without occlusion).
+    pub visibility: Visibility,
+}
+
+impl PairResult {
+    const CULLED: PairResult = PairResult {
+        value: 0.0,
+        kind: PairKind::Culled,
+        evaluations: 0,
+        visibility: Visibility::UNOCCLUDED,
+    };
+}
+
+/// A facing pair in its own frame, clipped.
+struct Facing {
+    a: Poly,
+    b: Poly,
+    unit: f64,
+    kind: PairKind,
+}
+
+/// Occlusion for [`FormFactors::with_occlusion`]: the scene's occluders, the polygon pairs
+/// that need rays at all (from [`Occluders::occludable_pairs`]), and the rays per pair.
+#[derive(Clone, Copy)]
+pub struct Occlusion<'a> {
+    pub occluders: &'a Occluders,
+    pub pairs: &'a OccludablePairs,
+    pub samples: u32,
 }
 
 /// A dense form-factor matrix, row-major.
