@@ -51,6 +51,13 @@ pub struct Counts {
     pub primitives_skipped: usize,
     pub ngons_split: usize,
     pub faces_read: usize,
+    /// Faces dropped as duplicates of an earlier face (absent in older reports: 0).
+    #[serde(default)]
+    pub duplicates_dropped: usize,
+    /// Faces wound opposite to their neighbours, kept as authored (absent in older
+    /// reports: 0).
+    #[serde(default)]
+    pub against_winding: usize,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -215,6 +222,8 @@ impl Counts {
             primitives_skipped: stats.primitives_skipped,
             ngons_split: stats.ngons_split,
             faces_read: stats.faces_read,
+            duplicates_dropped: stats.duplicates_dropped,
+            against_winding: stats.against_winding,
         }
     }
 }

@@ -136,6 +136,11 @@ pub struct ImportStats {
     pub primitives_skipped: usize,
     /// Polygons with more than 4 vertices split into triangles/quads.
     pub ngons_split: usize,
+    /// Faces dropped because an earlier face of the same primitive has the same vertices in
+    /// the same order (either order for a double-sided material).
+    pub duplicates_dropped: usize,
+    /// Faces wound opposite to their neighbours (kept as authored; see [`load`]).
+    pub against_winding: usize,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -189,18 +194,27 @@ pub enum ImportError {
 /// 2. consecutive repeated vertices (closer than 1e-9 × scene size) are removed; faces
 ///    left with < 3 vertices or area ≤ 1e-12 × scene size² are dropped
 ///    ([`ImportStats::degenerate_dropped`], one warning per instance);
-/// 3. consecutive source triangles t, t+1 sharing an edge (opposite directions), facing
+/// 3. a face with the same vertices (exact positions) in the same cyclic order as an
+///    earlier face of the same primitive instance is dropped
+///    ([`ImportStats::duplicates_dropped`], one warning per instance); for a double-sided
+///    material the reverse order is a duplicate too. Two coincident single-sided faces of
+///    opposite orientation are a thin two-sided sheet and both kept. Winding is taken as
+///    authored (it defines the front side); faces that traverse a shared edge in the same
+///    direction as their neighbour are counted against the majority of their connected
+///    surface ([`ImportStats::against_winding`], one warning per instance; not checked for
+///    double-sided materials, whose sides are both surfaces);
+/// 4. consecutive source triangles t, t+1 sharing an edge (opposite directions), facing
 ///    the same way, coplanar (every vertex within 1e-6 × the quad's size of its mean
 ///    plane) and forming a strictly convex quad are merged ([`ImportStats::quads_merged`]);
-/// 4. OBJ polygons with > 4 vertices are ear-clipped (a fan from vertex 0 when convex) and
+/// 5. OBJ polygons with > 4 vertices are ear-clipped (a fan from vertex 0 when convex) and
 ///    their triangles merged pairwise into quads where planar and convex
 ///    ([`ImportStats::ngons_split`]); a concave quad is cut along the diagonal from its
 ///    reflex corner; a non-planar quad (same 1e-6 rule) is cut into two triangles with a
 ///    warning;
-/// 5. a node whose world matrix mirrors (negative determinant) has its faces' vertex
+/// 6. a node whose world matrix mirrors (negative determinant) has its faces' vertex
 ///    order reversed, so every polygon is counter-clockwise about its Newell normal,
 ///    which points to the front;
-/// 6. a double-sided material adds, right after each front polygon, a [`Side::Back`]
+/// 7. a double-sided material adds, right after each front polygon, a [`Side::Back`]
 ///    polygon with reversed vertices and negated normal.
 ///
 /// No polygon left is [`ImportError::Empty`].
@@ -214,6 +228,31 @@ pub fn load(path: &Path) -> Result<Scene, ImportError> {
         Some("obj") => obj_in::load(path),
         _ => Err(ImportError::UnsupportedExtension),
     }
+}
+
+/// A scene format, for [`load_bytes`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// glTF 2.0: JSON (`.gltf`) or a GLB container (`.glb`), told apart by the GLB magic.
+    Gltf,
+    /// Wavefront OBJ, without a material library (see [`load_obj_bytes`]).
+    Obj,
+}
+
+/// Reads a scene from memory, as [`load`] reads a file, except that nothing outside
+/// `bytes` is read: a glTF buffer must be embedded (a `data:` URI or the GLB's BIN chunk;
+/// an external one is an [`ImportError::Gltf`]), and an OBJ's `mtllib` is missing (its
+/// faces use the default grey, with a warning).
+pub fn load_bytes(bytes: &[u8], format: Format) -> Result<Scene, ImportError> {
+    match format {
+        Format::Gltf => gltf_in::load_bytes(bytes, None),
+        Format::Obj => obj_in::load_bytes(bytes, None),
+    }
+}
+
+/// Reads OBJ text from memory with one material library: every `mtllib` line reads `mtl`.
+pub fn load_obj_bytes(obj: &[u8], mtl: Option<&[u8]>) -> Result<Scene, ImportError> {
+    obj_in::load_bytes(obj, mtl)
 }
 
 /// `kind "name" (index)`, or `kind index` when unnamed: how messages name things.
