@@ -229,13 +229,72 @@ impl Counts {
 }
 
 /// Writes `report` as pretty JSON to `path`, atomically (temporary file, then rename).
+///
+/// JSON has no NaN or infinity (`serde_json` would write `null`): every number is checked
+/// first, and a non-finite one is an [`ExportError::NonFinite`] naming the element (and
+/// its polygon's origin) or the field; nothing is written then.
 pub fn write_report(path: &Path, report: &Report) -> Result<(), ExportError> {
+    check_finite(report)?;
     let mut json = serde_json::to_vec_pretty(report).map_err(|e| ExportError::Encode {
         what: "the bake report",
         message: e.to_string(),
     })?;
     json.push(b'\n');
     files::write_atomically(path, &json)
+}
+
+/// Every float of the report must be finite.
+fn check_finite(report: &Report) -> Result<(), ExportError> {
+    let not_finite = |what: String| Err(ExportError::NonFinite { what });
+    for (i, element) in report.elements.iter().enumerate() {
+        let fields: [(&str, &[f64]); 6] = [
+            ("centroid", &element.centroid),
+            ("normal", &element.normal),
+            ("area", std::slice::from_ref(&element.area)),
+            ("rho", &element.rho),
+            ("e", &element.e),
+            ("b", &element.b),
+        ];
+        if let Some((name, values)) = fields.iter().find(|(_, v)| !all_finite(v)) {
+            return not_finite(format!(
+                "report {}: {name} {values:?}",
+                element_name(report, i)
+            ));
+        }
+    }
+    if let Some((stage, seconds)) = report.timings.iter().find(|(_, s)| !s.is_finite()) {
+        return not_finite(format!("report timing {stage:?}: {seconds}"));
+    }
+    if !all_finite(&report.solver.residual) {
+        return not_finite(format!(
+            "report solver residual {:?}",
+            report.solver.residual
+        ));
+    }
+    Ok(())
+}
+
+fn all_finite(values: &[f64]) -> bool {
+    values.iter().all(|v| v.is_finite())
+}
+
+/// `element 3 (polygon 1: node 0, mesh 0, primitive 0, face 2, front)`.
+fn element_name(report: &Report, index: usize) -> String {
+    let polygon = report.elements[index].polygon;
+    match report.polygons.get(polygon as usize) {
+        Some(p) => format!(
+            "element {index} (polygon {polygon}: node {}, mesh {}, primitive {}, face {}, {})",
+            p.node,
+            p.mesh,
+            p.primitive,
+            p.face,
+            match p.side {
+                SideName::Front => "front",
+                SideName::Back => "back",
+            }
+        ),
+        None => format!("element {index} (polygon {polygon})"),
+    }
 }
 
 /// Reads a report written by [`write_report`].
