@@ -255,6 +255,63 @@ pub fn load_obj_bytes(obj: &[u8], mtl: Option<&[u8]>) -> Result<Scene, ImportErr
     obj_in::load_bytes(obj, mtl)
 }
 
+/// The fuzz targets' harnesses (`fuzz/`), here so that the regression test replays a
+/// saved input exactly as the fuzzer ran it. Not part of the API.
+#[doc(hidden)]
+pub mod fuzzing {
+    use crate::{load_bytes, load_obj_bytes, Format};
+
+    /// glTF bytes as given (JSON, or GLB by its magic), then, unless they already are a
+    /// GLB, split at the first NUL into the JSON and BIN chunks of a well-formed GLB so
+    /// that mutations reach binary files' JSON without breaking the container first.
+    pub fn gltf(data: &[u8]) {
+        let _ = load_bytes(data, Format::Gltf);
+        if !data.starts_with(b"glTF") {
+            let (json, bin) = split_at_nul(data);
+            let _ = load_bytes(&glb(json, bin), Format::Gltf);
+        }
+    }
+
+    /// OBJ text before the first NUL, and the MTL every `mtllib` reads after it (none
+    /// without a NUL).
+    pub fn obj(data: &[u8]) {
+        let (obj, mtl) = split_at_nul(data);
+        let _ = load_obj_bytes(obj, mtl);
+    }
+
+    fn split_at_nul(data: &[u8]) -> (&[u8], Option<&[u8]>) {
+        match data.iter().position(|&b| b == 0) {
+            Some(at) => (&data[..at], Some(&data[at + 1..])),
+            None => (data, None),
+        }
+    }
+
+    /// A GLB container (glTF 2.0, "GLB File Format") holding `json` and maybe `bin`.
+    fn glb(json: &[u8], bin: Option<&[u8]>) -> Vec<u8> {
+        let pad = |bytes: &[u8], with: u8| {
+            let mut padded = bytes.to_vec();
+            padded.resize(bytes.len().next_multiple_of(4), with);
+            padded
+        };
+        let json = pad(json, b' ');
+        let bin = bin.map(|b| pad(b, 0));
+        let total = 12 + 8 + json.len() + bin.as_ref().map_or(0, |b| 8 + b.len());
+        let mut out = Vec::with_capacity(total);
+        out.extend_from_slice(b"glTF");
+        out.extend_from_slice(&2u32.to_le_bytes());
+        out.extend_from_slice(&(total as u32).to_le_bytes());
+        out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"JSON");
+        out.extend_from_slice(&json);
+        if let Some(bin) = bin {
+            out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+            out.extend_from_slice(b"BIN\0");
+            out.extend_from_slice(&bin);
+        }
+        out
+    }
+}
+
 /// `kind "name" (index)`, or `kind index` when unnamed: how messages name things.
 pub(crate) fn describe(kind: &str, name: Option<&str>, index: usize) -> String {
     match name {
