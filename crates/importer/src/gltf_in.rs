@@ -307,6 +307,9 @@ fn build_scene(
         })?;
         let mesh_name = describe("mesh", mesh.name.as_deref(), mesh_index);
         let node_name = describe("node", node.name.as_deref(), node_index);
+        if !placeable(node, &node_name, &mut warnings)? {
+            continue;
+        }
         for (p, primitive) in mesh.primitives.iter().enumerate() {
             let label = format!("{mesh_name}, primitive {p}");
             let key = (mesh_index, p);
@@ -369,6 +372,26 @@ fn build_scene(
         stats,
         warnings,
     })
+}
+
+/// Whether a node's mesh can be baked in place. A singular world matrix (a scale of 0
+/// on some axis) flattens the mesh: what is left cannot be written back in the node's
+/// local space, so the node is skipped with a warning. A non-finite one is an error.
+fn placeable(node: &Node, name: &str, warnings: &mut Vec<String>) -> Result<bool, ImportError> {
+    let determinant = node.world.determinant();
+    if !determinant.is_finite() {
+        return Err(ImportError::InvalidValue {
+            what: name.to_owned(),
+            problem: "world transform is not finite".into(),
+        });
+    }
+    if determinant == 0.0 {
+        warnings.push(format!(
+            "{name}: skipped (its world transform is singular: a scale of 0 flattens it)"
+        ));
+        return Ok(false);
+    }
+    Ok(true)
 }
 
 /// True when some primitive has no material (and so uses the glTF default material).

@@ -181,6 +181,8 @@ pub enum ImportError {
 ///   × `KHR_materials_emissive_strength`; textures and vertex colours are ignored. A
 ///   primitive without a material uses the glTF default material (ρ = 1, e = 0,
 ///   single-sided), appended after the file's materials when some primitive needs it.
+///   A node whose world matrix is singular (a scale of 0) is skipped with a warning: its
+///   bake could not be written back in its local space.
 /// - OBJ: one mesh (and one identity node) per `tobj` model, all in one scene. ρ = `Kd`,
 ///   e = `Ke`, single-sided. A face without a material (no `usemtl`, a missing MTL file or
 ///   an unknown name) uses a neutral grey default: ρ = 0.8, e = 0, appended after the MTL

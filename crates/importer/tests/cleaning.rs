@@ -293,3 +293,20 @@ fn area(v: &[DVec3]) -> f64 {
         .length()
         / 2.0
 }
+
+#[test]
+fn node_flattened_by_a_zero_scale_is_skipped_with_a_warning() {
+    // The square lies in z = 0, so scale z = 0 keeps its area, but the node's transform
+    // cannot be inverted to write the bake back: the node is skipped.
+    let mut b = GltfBuilder::new();
+    let mesh = b.triangle_mesh("Mesh", &SQUARE, Some(&[0, 1, 2, 0, 2, 3]), None);
+    let kept = b.node(json!({ "mesh": mesh }));
+    let flat = b.node(json!({ "name": "Flat", "mesh": mesh, "scale": [1., 1., 0.] }));
+    b.scene(&[kept, flat]);
+    let scene = write_and_load(&b).expect("loads");
+    assert_eq!(scene.polygons.len(), 1);
+    assert!(scene.polygons.iter().all(|p| p.origin.node == kept));
+    let warnings = warnings_with(&scene, "singular");
+    assert_eq!(warnings.len(), 1, "{:?}", scene.warnings);
+    assert!(warnings[0].contains("node \"Flat\" (1)"), "{warnings:?}");
+}
