@@ -295,6 +295,7 @@ fn build_scene(
     let mut cache: HashMap<(usize, usize), Option<LocalPrimitive>> = HashMap::new();
     let mut checked = vec![false; materials.len()];
     let mut instances = Vec::new();
+    let mut face_count = 0;
     for &node_index in &baked_nodes {
         let node = &layout.nodes[node_index];
         let Some(mesh_index) = node.mesh else {
@@ -327,6 +328,7 @@ fn build_scene(
             let Some(local) = local.as_ref() else {
                 continue;
             };
+            polygon::count_faces(&mut face_count, local.triangles.len())?;
             let material_index = material_of(primitive.material.map(|m| m.value()));
             let material = materials.get(material_index).ok_or_else(|| {
                 ImportError::Gltf(format!("{label}: material {material_index} does not exist"))

@@ -172,6 +172,9 @@ pub enum ImportError {
     InvalidValue { what: String, problem: String },
     #[error("nothing left to bake: the scene has no polygons with area")]
     Empty,
+    /// The scene exceeds a memory guard of the importer.
+    #[error("too large: {0}")]
+    TooLarge(String),
 }
 
 /// Reads `path` (`.gltf`, `.glb` or `.obj`, by extension, case-insensitive).

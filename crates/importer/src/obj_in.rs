@@ -319,6 +319,7 @@ fn build_scene(
     let mut layout = Layout::default();
     let mut instances = Vec::new();
     let mut without_material = 0;
+    let mut face_count = 0;
     for model in models.iter().filter(|m| !m.mesh.indices.is_empty()) {
         let index = layout.meshes.len();
         let label = format!(
@@ -355,9 +356,11 @@ fn build_scene(
             mesh: Some(index),
             world: DMat4::IDENTITY,
         });
+        let faces =
+            model_faces(&model.mesh).map_err(|e| ImportError::Obj(format!("{label}: {e}")))?;
+        polygon::count_faces(&mut face_count, faces.len())?;
         instances.push(Instance {
-            faces: model_faces(&model.mesh)
-                .map_err(|e| ImportError::Obj(format!("{label}: {e}")))?,
+            faces,
             label,
             place: String::new(),
             origin: Origin {

@@ -34,6 +34,23 @@ const PLANAR: f64 = 1e-6;
 /// turning angle); it is reflex when that is below minus this.
 const TURN: f64 = 1e-9;
 
+/// The most source faces a scene may have, summed over every instance: a memory guard
+/// (each face is placed in world space per instance before cleaning), far above what the
+/// solver can take (a mesh used by many nodes multiplies its faces).
+pub(crate) const MAX_SCENE_FACES: usize = 1 << 22;
+
+/// Adds `more` faces to the running `total`, refusing a scene over [`MAX_SCENE_FACES`].
+pub(crate) fn count_faces(total: &mut usize, more: usize) -> Result<(), ImportError> {
+    *total = total.saturating_add(more);
+    if *total > MAX_SCENE_FACES {
+        return Err(ImportError::TooLarge(format!(
+            "the scene has more than {MAX_SCENE_FACES} faces (counting each instance of a \
+             mesh), the importer's limit"
+        )));
+    }
+    Ok(())
+}
+
 /// One source face (a triangle after strip/fan decoding, or an OBJ face), world space.
 #[derive(Clone, Debug)]
 pub(crate) struct SourceFace {

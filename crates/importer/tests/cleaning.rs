@@ -310,3 +310,25 @@ fn node_flattened_by_a_zero_scale_is_skipped_with_a_warning() {
     assert_eq!(warnings.len(), 1, "{:?}", scene.warnings);
     assert!(warnings[0].contains("node \"Flat\" (1)"), "{warnings:?}");
 }
+
+#[test]
+fn a_scene_with_too_many_faces_in_all_instances_is_refused() {
+    // 2^20 zero indices (an accessor without a buffer view) make 349,525 triangles; 16
+    // nodes using the mesh make 5.6 million faces, more than the importer's 2^22.
+    let mut b = GltfBuilder::new();
+    let position = b.positions(&SQUARE);
+    let indices = b.accessor(&[], common::UNSIGNED_INT, "SCALAR", 1 << 20, json!({}));
+    b.root["accessors"][indices]
+        .as_object_mut()
+        .expect("object")
+        .remove("bufferView");
+    let mesh = b.mesh(
+        "Many",
+        vec![json!({ "attributes": { "POSITION": position }, "indices": indices })],
+    );
+    let nodes: Vec<usize> = (0..16).map(|_| b.node(json!({ "mesh": mesh }))).collect();
+    b.scene(&nodes);
+    let error = write_and_load(&b).expect_err("too many faces");
+    assert!(matches!(error, ImportError::TooLarge(_)), "{error}");
+    assert!(error.to_string().contains("4194304"), "{error}");
+}
