@@ -1,8 +1,8 @@
 //! Wires the stages together, times them, reports progress, and maps failures to exit codes.
 
-use crate::{Cli, Shading};
+use crate::{Cli, Shading, SolverKind};
 use anyhow::{anyhow, Context};
-use exporter::report::{self, Report, SolverInfo, SolverMethod};
+use exporter::report::{self, EnergyInfo, Report, SolverInfo, SolverMethod};
 use form_factor::{ContourOptions, FormFactors};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use mesher::Subdivision;
@@ -95,6 +95,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     let contour = ContourOptions {
         segments: cli.ff_segments,
         order: cli.ff_order,
+        auto_order: !cli.ff_fixed_order,
         ..ContourOptions::default()
     };
     let bar = progress_bar(cli.quiet, n as u64, "form factors");
@@ -114,10 +115,14 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     if e.iter().all(|x| x.iter().all(|&v| v == 0.0)) {
         warnings.push("the scene has no emitters: every radiosity is 0".to_string());
     }
-    let f = solver::DenseMatrix::new(n, &matrix.data).map_err(|err| internal(err.into()))?;
-    let solution = match cli.bounces {
-        None => solver::solve_direct(&f, &rho, &e),
-        Some(k) => solver::solve_bounces(&f, &rho, &e, k),
+    let f = solver::DenseMatrix::new(n, &matrix.data)
+        .map_err(|err| internal(err.into()))?
+        .with_accuracy(form_factor::ROW_SUM_ACCURACY);
+    let method = solver_method(cli);
+    let solution = match method {
+        SolverMethod::Direct => solver::solve_direct(&f, &rho, &e),
+        SolverMethod::Iterative => solver::solve_iterative(&f, &rho, &e, &iterative_options(cli)),
+        SolverMethod::Bounces => solver::solve_bounces(&f, &rho, &e, cli.bounces.unwrap_or(0)),
     }
     .with_context(|| format!("{}: no solution", input.display()))
     .map_err(bad_input)?;
@@ -148,21 +153,30 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
 
     if let Some(path) = &cli.report {
         let info = SolverInfo {
-            method: if cli.bounces.is_some() {
-                SolverMethod::Bounces
-            } else {
-                SolverMethod::Direct
-            },
+            method,
             bounces: cli.bounces,
             residual: solution.residual,
             residual_relative: solution.residual_relative,
             factorizations: solution.factorizations as u32,
+            condition: solution.condition,
+            iterations: solution.iterations,
         };
+        // Emitted = absorbed + escaped (conservation of energy), per band.
+        let areas: Vec<f64> = mesh.elements.iter().map(|el| el.area).collect();
+        let energy = solver::energy_balance(&f, &areas, &rho, &e, &solution.b)
+            .map_err(|err| internal(err.into()))?;
         let mut report = Report::new(input, &scene, &mesh, &solution.b, info)
             .with_context(|| format!("cannot build the report {}", path.display()))
             .map_err(internal)?;
         report.options = options_json(cli, subdivision, contour);
         report.counts.pairs_evaluated = matrix.stats.pairs_integrated;
+        report.energy = Some(EnergyInfo {
+            emitted: energy.emitted,
+            absorbed: energy.absorbed,
+            escaped: energy.escaped,
+            imbalance: energy.imbalance,
+            imbalance_relative: energy.imbalance_relative,
+        });
         report.warnings = warnings.clone();
         timings.insert("total".to_string(), started.elapsed().as_secs_f64());
         report.timings = timings;
@@ -173,8 +187,23 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
 
     if !cli.quiet {
         let r = solution.residual;
+        // The hardest band's condition number and, for GMRES, its iteration count.
+        let mut hardness = String::new();
+        if let Some(cond) = solution
+            .condition
+            .iter()
+            .flatten()
+            .copied()
+            .reduce(f64::max)
+        {
+            hardness += &format!(", cond {cond:.1e}");
+        }
+        if method == SolverMethod::Iterative {
+            let iterations = solution.iterations.iter().max().copied().unwrap_or(0);
+            hardness += &format!(", {iterations} iterations");
+        }
         eprintln!(
-            "bake: {} → {}: {} polygons, {n} elements, {} pairs integrated, residual {:.1e}/{:.1e}/{:.1e}, {:.2} s",
+            "bake: {} → {}: {} polygons, {n} elements, {} pairs integrated, residual {:.1e}/{:.1e}/{:.1e}{hardness}, {:.2} s",
             input.display(),
             cli.output.display(),
             scene.polygons.len(),
@@ -186,6 +215,25 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         );
     }
     Ok(())
+}
+
+/// `--bounces` (which conflicts with `--solver`) or `--solver`.
+fn solver_method(cli: &Cli) -> SolverMethod {
+    match (cli.bounces, cli.solver) {
+        (Some(_), _) => SolverMethod::Bounces,
+        (None, SolverKind::Direct) => SolverMethod::Direct,
+        (None, SolverKind::Iterative) => SolverMethod::Iterative,
+    }
+}
+
+/// The iterative solver's settings: `--tolerance` and `--max-iterations` over the defaults.
+fn iterative_options(cli: &Cli) -> solver::IterativeOptions {
+    let default = solver::IterativeOptions::default();
+    solver::IterativeOptions {
+        tolerance: cli.tolerance.unwrap_or(default.tolerance),
+        max_iterations: cli.max_iterations.unwrap_or(default.max_iterations),
+        ..default
+    }
 }
 
 fn progress_bar(quiet: bool, len: u64, what: &str) -> ProgressBar {
@@ -208,13 +256,18 @@ fn options_json(cli: &Cli, subdivision: Subdivision, contour: ContourOptions) ->
         Subdivision::Count(n) => serde_json::json!({ "subdiv": n }),
         Subdivision::MaxSize(l) => serde_json::json!({ "max_element_size": l }),
     };
+    let iterative = (solver_method(cli) == SolverMethod::Iterative).then(|| iterative_options(cli));
     serde_json::json!({
         "subdivision": subdivision,
+        "solver": solver_method(cli),
+        "tolerance": iterative.map(|o| o.tolerance),
+        "max_iterations": iterative.map(|o| o.max_iterations),
         "bounces": cli.bounces,
         "shading": match cli.shading { Shading::Smooth => "smooth", Shading::Flat => "flat" },
         "exposure": cli.exposure,
         "ff_segments": contour.segments,
         "ff_order": contour.order,
+        "ff_auto_order": contour.auto_order,
         "ff_near_ratio": contour.near_ratio,
         "output": cli.output.display().to_string(),
     })

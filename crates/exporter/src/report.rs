@@ -9,6 +9,7 @@
 //! let mut report = Report::new(input, &scene, &mesh, &radiosity, solver)?;
 //! report.options = serde_json::to_value(&options)?;
 //! report.counts.pairs_evaluated = pairs;
+//! report.energy = Some(energy);
 //! report.timings.insert("solve".into(), seconds);
 //! write_report(path, &report)?;
 //! ```
@@ -20,8 +21,9 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// The version of this report's layout.
-pub const SCHEMA_VERSION: u32 = 1;
+/// The version of this report's layout (2: `solver.condition`, `solver.iterations`, the
+/// `iterative` method and the `energy` object).
+pub const SCHEMA_VERSION: u32 = 2;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Report {
@@ -35,6 +37,8 @@ pub struct Report {
     /// Seconds per stage, by stage name.
     pub timings: BTreeMap<String, f64>,
     pub solver: SolverInfo,
+    /// Power balance of the solution; `None` until the caller sets it.
+    pub energy: Option<EnergyInfo>,
     pub warnings: Vec<String>,
     pub polygons: Vec<PolygonEntry>,
     pub elements: Vec<ElementEntry>,
@@ -67,6 +71,8 @@ pub enum SolverMethod {
     Direct,
     /// A fixed number of light bounces (Jacobi-style gathering).
     Bounces,
+    /// Solved the linear system iteratively (GMRES) to a residual tolerance.
+    Iterative,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -80,6 +86,28 @@ pub struct SolverInfo {
     pub residual_relative: [bool; 3],
     /// Matrix factorizations performed.
     pub factorizations: u32,
+    /// Per band, the estimate of the condition number `cond_∞(I − ρF)` (how much the system
+    /// amplifies relative errors; about `(1 + ρ) / (1 − ρ)` in a closed grey scene); `null`
+    /// when the band was not solved as a linear system (bounces, or no emission).
+    pub condition: [Option<f64>; 3],
+    /// Per band, iterations of the [`SolverMethod::Iterative`] solver (0 otherwise).
+    pub iterations: [u32; 3],
+}
+
+/// Conservation of energy per band, in the report's power unit (intensity × area): emitted =
+/// absorbed + escaped for a solved system with reciprocal form factors.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EnergyInfo {
+    /// `Σ A_i e_i`.
+    pub emitted: [f64; 3],
+    /// `Σ A_i (1 − ρ_i) H_i`, `H_i = Σ_j F_ij b_j` the light arriving at element i.
+    pub absorbed: [f64; 3],
+    /// `Σ A_i b_i (1 − Σ_j F_ij)`: light leaving through openings (≈ 0 in a closed scene).
+    pub escaped: [f64; 3],
+    /// `|emitted − absorbed − escaped| / emitted`, absolute when nothing is emitted.
+    pub imbalance: [f64; 3],
+    /// Whether each band's imbalance is relative (to the emitted power) rather than absolute.
+    pub imbalance_relative: [bool; 3],
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -128,8 +156,8 @@ pub struct ElementEntry {
 
 impl Report {
     /// A report with the scene's counts, warnings, polygons and elements filled in.
-    /// `options` is `{}`, `timings` is empty and `counts.pairs_evaluated` is 0: the caller
-    /// sets them.
+    /// `options` is `{}`, `timings` is empty, `energy` is `None` and `counts.pairs_evaluated`
+    /// is 0: the caller sets them.
     pub fn new(
         input: &Path,
         scene: &Scene,
@@ -144,6 +172,7 @@ impl Report {
             counts: Counts::new(scene, mesh, 0),
             timings: BTreeMap::new(),
             solver,
+            energy: None,
             warnings: scene.warnings.clone(),
             polygons: Report::polygons_from(scene),
             elements: Report::elements_from(scene, mesh, radiosity)?,

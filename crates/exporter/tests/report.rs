@@ -3,7 +3,7 @@
 mod common;
 
 use bake_exporter::report::{
-    read_report, write_report, Counts, Report, SideName, SolverInfo, SolverMethod,
+    read_report, write_report, Counts, EnergyInfo, Report, SideName, SolverInfo, SolverMethod,
 };
 use bake_exporter::ExportError;
 use common::{file_names, fixture};
@@ -16,6 +16,8 @@ fn solver() -> SolverInfo {
         residual: [1.0e-9, 0.1 + 0.2, f64::MIN_POSITIVE],
         residual_relative: [true, false, true],
         factorizations: 0,
+        condition: [Some(1.0 / 3.0), None, Some(19_999.000_000_001)],
+        iterations: [0, 7, 123],
     }
 }
 
@@ -34,6 +36,13 @@ fn report() -> Report {
     .expect("a report");
     report.options = serde_json::json!({"subdivision": 2, "exposure": 0.9});
     report.counts.pairs_evaluated = 91;
+    report.energy = Some(EnergyInfo {
+        emitted: [1.0, 0.0, 2.5],
+        absorbed: [0.7, 0.0, 2.5 - 1e-12],
+        escaped: [0.3 - 1e-17, 0.0, 0.0],
+        imbalance: [1e-17, 0.0, 4e-13],
+        imbalance_relative: [true, false, true],
+    });
     report.timings.insert("import".into(), 0.001_25);
     report.timings.insert("form_factors".into(), 1.0 / 7.0);
     report
@@ -43,7 +52,7 @@ fn report() -> Report {
 fn report_holds_the_scene_and_results() {
     let fixture = fixture();
     let report = report();
-    assert_eq!(report.schema_version, 1);
+    assert_eq!(report.schema_version, 2);
     assert_eq!(report.input, "scenes/cube.gltf");
     assert_eq!(
         report.counts,
@@ -119,6 +128,7 @@ fn report_round_trips_exactly_with_keys_in_field_order() {
         "counts",
         "timings",
         "solver",
+        "energy",
         "warnings",
         "polygons",
         "elements",
@@ -137,6 +147,8 @@ fn report_round_trips_exactly_with_keys_in_field_order() {
         "key order {positions:?}"
     );
     assert!(text.contains("\"method\": \"bounces\""));
+    // A band without a condition estimate is `null`.
+    assert!(text.contains("\"condition\": [\n      0.3333333333333333,\n      null,"));
     assert!(text.contains("\"side\": \"back\""));
     // Deterministic: the same report gives the same bytes.
     let again = dir.path().join("again.json");

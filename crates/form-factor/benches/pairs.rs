@@ -25,7 +25,13 @@ fn cube() -> Vec<Polygon> {
             vertices: c.to_vec(),
             normal: (c[1] - c[0]).cross(c[2] - c[0]).normalize(),
             material: 0,
-            origin: Origin { node: k, mesh: k, primitive: 0, face: 0, side: Side::Front },
+            origin: Origin {
+                node: k,
+                mesh: k,
+                primitive: 0,
+                face: 0,
+                side: Side::Front,
+            },
         })
         .collect()
 }

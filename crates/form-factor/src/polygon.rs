@@ -106,10 +106,11 @@ pub fn two_element_mesh(a: &[DVec3], b: &[DVec3]) -> ElementMesh {
         for (c, slot) in corners.iter_mut().enumerate() {
             *slot = base + c.min(sides - 1) as u32;
         }
-        // Newell normal, area and centroid by a fan.
+        // Newell normal (about the first vertex: raw coordinates far from the origin would
+        // cancel catastrophically), area and centroid by a fan.
         let mut normal = DVec3::ZERO;
         for i in 0..sides {
-            normal += poly[i].cross(poly[(i + 1) % sides]);
+            normal += (poly[i] - poly[0]).cross(poly[(i + 1) % sides] - poly[0]);
         }
         let normal = normal.normalize();
         let mut area = 0.0;

@@ -11,11 +11,43 @@
 //! [`Operator`] trait (`y = F x`), so a matrix-free or hierarchical operator can replace the
 //! dense one ([`DenseMatrix`]) for everything but [`solve_direct`], which needs the entries.
 //!
-//! Two solvers:
+//! Three solvers:
 //! - [`solve_direct`]: LU with partial pivoting (faer) of `I − diag(ρ_c) F`, one factorisation
 //!   per distinct ρ band (a grey scene is factored once).
+//! - [`solve_iterative`]: restarted GMRES on the same system through [`Operator::apply`] only,
+//!   to a relative-residual tolerance within an iteration budget; it fails with
+//!   [`SolveError::NotConverged`] rather than return an unconverged answer.
 //! - [`solve_bounces`]: the Neumann series truncated after exactly K interreflections
 //!   (the paper's Figure 7 progression).
+//!
+//! [`energy_balance`] checks a solution against conservation of energy: emitted power =
+//! absorbed power + power escaping through openings.
+//!
+//! # Condition estimate and meaningless systems
+//! Both exact solvers report `cond_∞(A)` of `A = I − diag(ρ_c) F` per band
+//! ([`Solution::condition`]), from one extra solve `A z = 1`:
+//!
+//! ```text
+//! cond_∞(A) = ‖A‖∞ ‖A⁻¹‖∞,   ‖A⁻¹‖∞ = ‖A⁻¹ 1‖∞ = max_i z_i   when A⁻¹ ≥ 0 entrywise.
+//! ```
+//!
+//! `A⁻¹ = Σ_k (diag(ρ) F)^k ≥ 0` whenever `F ≥ 0` and light decays (spectral radius of
+//! `diag(ρ) F` below 1), which is the physics of eq. 7; `z_i` is then the expected number of
+//! reflections (plus one) of light leaving element `i`. `‖A⁻¹ v‖∞ / ‖v‖∞ ≤ ‖A⁻¹‖∞` for any `v`,
+//! so the estimate (the larger of `z` and the `b / e` ratio of the solved bands) is a lower
+//! bound on `cond_∞` in every case and exact for physical operators.
+//!
+//! A band is refused as [`SolveError::Singular`] (never returned with NaN, infinities or
+//! digits that mean nothing) when its solution is non-finite; when `min_i z_i < 1/2` (light is
+//! amplified: `z ≥ 1` for every physical system); or when `cond_∞ · η ≥ 1`, i.e. no digit of
+//! `b` is guaranteed, where `η = max(n ε, max_i (ρ_i Σ_j F_ij − 1))` is the relative error of
+//! the operator that is visible from the operator alone: round-off, and rows whose reflected
+//! fraction exceeds 1 (physically `Σ_j F_ij ≤ 1`, eq. 15, so any excess is integration error).
+//! A closed scene with ρ = 1 everywhere and an emitter has no finite solution; with form
+//! factors whose rows sum to 1 within δ its condition number is about `1/δ`, so it is refused
+//! whenever some row exceeds 1 by a similar δ. (When every row falls short of 1 instead, the
+//! operator describes a leaky box: its answer is large, finite, and balanced by the light that
+//! escapes through the leak, see [`energy_balance`].)
 //!
 //! # Determinism
 //! Every result is bit-identical for any rayon thread count (checked by the test
@@ -31,6 +63,12 @@ use faer::linalg::lu::partial_pivoting::{factor, solve};
 use faer::{Conj, Mat, MatRef, Par};
 use rayon::prelude::*;
 use thiserror::Error;
+
+mod energy;
+mod iterative;
+
+pub use energy::{energy_balance, EnergyBalance};
+pub use iterative::{solve_iterative, IterativeOptions};
 
 /// Number of colour bands (r, g, b).
 pub const BANDS: usize = 3;
@@ -65,6 +103,14 @@ pub trait Operator: Sync {
             }
         }
     }
+
+    /// A bound on the error of `F`'s row sums that the operator's producer knows (e.g. the
+    /// form-factor integrator's accuracy). It enters `η` (see the crate docs), so a system
+    /// whose answer that error could change entirely — `cond_∞ · ρ · accuracy ≥ 1` — is
+    /// refused instead of returned. 0 (the default) trusts `F` to round-off.
+    fn accuracy(&self) -> f64 {
+        0.0
+    }
 }
 
 /// A dense `n × n` form-factor matrix borrowed as a row-major slice: `data[i * n + j] = F_ij`.
@@ -72,6 +118,7 @@ pub trait Operator: Sync {
 pub struct DenseMatrix<'a> {
     n: usize,
     data: &'a [f64],
+    accuracy: f64,
 }
 
 impl<'a> DenseMatrix<'a> {
@@ -89,7 +136,19 @@ impl<'a> DenseMatrix<'a> {
                 value: data[k],
             });
         }
-        Ok(Self { n, data })
+        Ok(Self {
+            n,
+            data,
+            accuracy: 0.0,
+        })
+    }
+
+    /// States the known accuracy of `F`'s row sums (see [`Operator::accuracy`]).
+    pub fn with_accuracy(self, accuracy: f64) -> Self {
+        Self {
+            accuracy: accuracy.max(0.0),
+            ..self
+        }
     }
 
     /// Row `i` of `F`: `F_i0 .. F_i(n-1)`. Panics when `i >= n`.
@@ -113,6 +172,10 @@ fn dot(row: &[f64], x: &[f64]) -> f64 {
 }
 
 impl Operator for DenseMatrix<'_> {
+    fn accuracy(&self) -> f64 {
+        self.accuracy
+    }
+
     fn n(&self) -> usize {
         self.n
     }
@@ -176,8 +239,18 @@ pub struct Solution {
     pub residual: [f64; BANDS],
     /// Per band: whether `residual` is relative (`‖e‖₂ > 0`) or absolute.
     pub residual_relative: [bool; BANDS],
-    /// Number of LU factorisations done (0 for [`solve_bounces`]; 1 for a grey scene).
+    /// Number of LU factorisations done (0 for [`solve_bounces`] and [`solve_iterative`];
+    /// 1 for a grey scene).
     pub factorizations: usize,
+    /// Per band: the estimate of `cond_∞(I − diag(ρ_c) F)` described in the crate docs (a lower
+    /// bound, exact for physical operators). `None` when the band was not solved as a linear
+    /// system: [`solve_bounces`], or a band without emission (`b = 0` is then exact) that shares
+    /// no ρ with an emitting band.
+    pub condition: [Option<f64>; BANDS],
+    /// Per band: GMRES iterations (operator applications in the Arnoldi process) of
+    /// [`solve_iterative`]; bands sharing one solve report the same count. 0 for the other
+    /// solvers and for bands without emission.
+    pub iterations: [u32; BANDS],
 }
 
 /// Why a solve was refused or failed.
@@ -218,6 +291,22 @@ pub enum SolveError {
          (the operator amplifies light: check the form factors)"
     )]
     Diverged { band: usize, bounces: u32 },
+    #[error(
+        "the iterative solver did not converge in band {band}: relative residual {residual:.3e} \
+         after {iterations} iterations, tolerance {tolerance:e} (raise the iteration budget or \
+         the tolerance, or use the direct solver)"
+    )]
+    NotConverged {
+        band: usize,
+        iterations: u32,
+        /// `‖(I − ρF) b − e‖₂ / ‖e‖₂` of the last iterate (which is not returned).
+        residual: f64,
+        tolerance: f64,
+    },
+    #[error("invalid iterative solver option: {0}")]
+    InvalidOption(String),
+    #[error("area of element {element} is {value}: must be finite and ≥ 0")]
+    Area { element: usize, value: f64 },
 }
 
 /// Checks lengths and values of ρ and e against `n`.
@@ -296,30 +385,11 @@ fn same_column(v: &[[f64; BANDS]], a: usize, b: usize) -> bool {
     column(v, a).eq(column(v, b))
 }
 
-/// Solves `(I − diag(ρ_c) F) b_c = e_c` for the three bands by LU with partial pivoting (faer).
-///
-/// "No extra bands for a grey scene": bands whose ρ columns are identical share one
-/// factorisation and are solved together as columns of one right-hand side; bands that also
-/// share e are solved once and copied. A band with zero emission gets `b = 0` (an exact solution)
-/// without being factored. [`Solution::factorizations`] counts the factorisations done.
-///
-/// A band is refused as [`SolveError::Singular`] when its system is singular to working
-/// precision: an LU pivot `|u_kk| ≤ n ε max|A|`, a non-finite `b`, or a solution so large that
-/// `cond_∞(A) ≥ ‖A‖∞ ‖b‖∞ / ‖e‖∞ ≥ 1 / (n ε)` (no correct digit guaranteed). NaN or infinite
-/// values are never returned.
-///
-/// Each factorisation runs sequentially (`Par::Seq`), because faer 0.24's parallel LU gives
-/// different bits for different thread counts; the distinct factorisations (up to three) run in
-/// parallel on the current rayon pool instead. The result is bit-identical for any thread count.
-/// Memory: one `n × n` matrix per distinct ρ band, alive at the same time.
-pub fn solve_direct(
-    f: &DenseMatrix,
-    rho: &[[f64; BANDS]],
-    e: &[[f64; BANDS]],
-) -> Result<Solution, SolveError> {
-    let n = f.n;
-    check_inputs(n, rho, e)?;
-
+/// The solves a scene needs: one job per distinct ρ column that some emitting band uses, as
+/// `(first band of that ρ, right-hand sides)`; each right-hand side is a list of bands with the
+/// same ρ and identical, nonzero e (solved once, copied to the others). Bands without emission
+/// appear in no job: `b = 0` solves `A b = 0` exactly.
+fn band_jobs(rho: &[[f64; BANDS]], e: &[[f64; BANDS]]) -> Vec<(usize, Vec<Vec<usize>>)> {
     // Bands with identical ρ: the same matrix A = I − diag(ρ_c) F.
     let mut groups: Vec<Vec<usize>> = Vec::new();
     for c in 0..BANDS {
@@ -328,9 +398,7 @@ pub fn solve_direct(
             None => groups.push(vec![c]),
         }
     }
-    // Per group, the bands with nonzero emission, bands with equal e sharing one right-hand
-    // side column. A group without emission needs no factorisation: b = 0 solves A b = 0.
-    let jobs: Vec<(usize, Vec<Vec<usize>>)> = groups
+    groups
         .iter()
         .map(|group| {
             let mut rhs_bands: Vec<Vec<usize>> = Vec::new();
@@ -343,24 +411,126 @@ pub fn solve_direct(
             (group[0], rhs_bands)
         })
         .filter(|(_, rhs_bands)| !rhs_bands.is_empty())
-        .collect();
+        .collect()
+}
+
+/// `s_i = Σ_j F_ij` (the fraction of light leaving element `i` that lands on some element),
+/// computed as `F 1` through the operator.
+fn row_sums<O: Operator + ?Sized>(op: &O) -> Vec<f64> {
+    let n = op.n();
+    let mut s = vec![0.0; n];
+    op.apply(&vec![1.0; n], &mut s);
+    s
+}
+
+/// `η = max(n ε, max_i (ρ_i s_i − 1), max_i ρ_i · accuracy)`: the relative error of band `c`'s
+/// operator. Physically `ρ_i s_i ≤ 1` (eq. 15: `s_i ≤ 1`), so a row reflecting more than all of
+/// its light is integration error of at least that size; `accuracy` is what the producer of `F`
+/// states about its row sums ([`Operator::accuracy`]).
+fn operator_error(rho: &[[f64; BANDS]], s: &[f64], c: usize, accuracy: f64) -> f64 {
+    let excess = rho
+        .iter()
+        .zip(s)
+        .map(|(r, s)| (r[c] * s - 1.0).max(r[c] * accuracy))
+        .fold(0.0f64, f64::max);
+    (s.len() as f64 * f64::EPSILON).max(excess)
+}
+
+/// `cond_∞ · η ≥ 1` (or NaN): the relative error bound of `b` reaches 1, no digit is
+/// guaranteed.
+fn meaningless(condition: f64, eta: f64) -> bool {
+    let bound = condition * eta;
+    bound.is_nan() || bound >= 1.0
+}
+
+/// The condition estimate of one ρ group and the checks of the crate docs ("Condition estimate
+/// and meaningless systems"): `z = A⁻¹ 1` (when solved) and the group's solutions `b` for
+/// right-hand sides `e`. Returns `‖A‖∞ · max(‖z‖∞, max ‖b‖∞ / ‖e‖∞)`.
+fn checked_condition(
+    band: usize,
+    norm_a: f64,
+    eta: f64,
+    z: Option<&[f64]>,
+    solved: &[(&[f64], f64)],
+) -> Result<f64, SolveError> {
+    let max_abs = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let finite = z
+        .iter()
+        .chain(solved.iter().map(|(b, _)| b))
+        .all(|v| v.iter().all(|x| x.is_finite()));
+    if !finite {
+        return Err(SolveError::Singular { band });
+    }
+    let mut inv_norm = 0.0f64;
+    if let Some(z) = z {
+        // z = Σ_k (ρF)^k 1 ≥ 1 for every system in which light decays.
+        if z.iter().any(|&x| x < 0.5) {
+            return Err(SolveError::Singular { band });
+        }
+        inv_norm = max_abs(z);
+    }
+    for &(b, e_max) in solved {
+        if e_max > 0.0 {
+            inv_norm = inv_norm.max(max_abs(b) / e_max);
+        }
+    }
+    let condition = norm_a * inv_norm;
+    if meaningless(condition, eta) {
+        return Err(SolveError::Singular { band });
+    }
+    Ok(condition)
+}
+
+/// Solves `(I − diag(ρ_c) F) b_c = e_c` for the three bands by LU with partial pivoting (faer).
+///
+/// "No extra bands for a grey scene": bands whose ρ columns are identical share one
+/// factorisation and are solved together as columns of one right-hand side; bands that also
+/// share e are solved once and copied. A band with zero emission gets `b = 0` (an exact solution)
+/// without being factored. [`Solution::factorizations`] counts the factorisations done.
+///
+/// Each factorisation also solves `A z = 1` (one more column) for [`Solution::condition`]. A
+/// band is refused as [`SolveError::Singular`] when an LU pivot `|u_kk| ≤ n ε max|A|`, or by the
+/// checks of the crate docs (non-finite solution, `min z < 1/2`, `cond_∞ · η ≥ 1`). NaN or
+/// infinite values are never returned.
+///
+/// Each factorisation runs sequentially (`Par::Seq`), because faer 0.24's parallel LU gives
+/// different bits for different thread counts; the distinct factorisations (up to three) run in
+/// parallel on the current rayon pool instead. The result is bit-identical for any thread count.
+/// Memory: one `n × n` matrix per distinct ρ band, alive at the same time.
+pub fn solve_direct(
+    f: &DenseMatrix,
+    rho: &[[f64; BANDS]],
+    e: &[[f64; BANDS]],
+) -> Result<Solution, SolveError> {
+    let n = f.n;
+    check_inputs(n, rho, e)?;
+    let jobs = band_jobs(rho, e);
+    let s = if jobs.is_empty() {
+        Vec::new()
+    } else {
+        row_sums(f)
+    };
 
     // One factorisation per job, in parallel; `collect` keeps job order, so the first error
     // reported is always the one of the lowest band.
-    let solved: Vec<Result<Mat<f64>, SolveError>> = jobs
+    let solved: Vec<Result<(Mat<f64>, f64), SolveError>> = jobs
         .par_iter()
-        .map(|(band, rhs_bands)| solve_band_group(f, rho, e, *band, rhs_bands))
+        .map(|(band, rhs_bands)| solve_band_group(f, rho, e, &s, *band, rhs_bands))
         .collect();
 
     let mut b = vec![[0.0; BANDS]; n];
-    for ((_, rhs_bands), x) in jobs.iter().zip(solved) {
-        let x = x?;
+    let mut condition = [None; BANDS];
+    for ((band, rhs_bands), x) in jobs.iter().zip(solved) {
+        let (x, cond) = x?;
         for (k, bands) in rhs_bands.iter().enumerate() {
             for &c in bands {
                 for (bi, v) in b.iter_mut().zip(x.col_as_slice(k)) {
                     bi[c] = *v;
                 }
             }
+        }
+        for c in (0..BANDS).filter(|&c| same_column(rho, *band, c)) {
+            condition[c] = Some(cond);
         }
     }
 
@@ -370,35 +540,51 @@ pub fn solve_direct(
         residual,
         residual_relative,
         factorizations: jobs.len(),
+        condition,
+        iterations: [0; BANDS],
     })
 }
 
 /// Factors `A = I − diag(ρ_band) F` once and solves it for one right-hand side column per entry
-/// of `rhs_bands` (the e column of that entry's first band). Returns the `n × k` solutions.
+/// of `rhs_bands` (the e column of that entry's first band), plus `A z = 1` in the last column.
+/// Returns the `n × (k + 1)` solutions and the group's condition estimate.
 fn solve_band_group(
     f: &DenseMatrix,
     rho: &[[f64; BANDS]],
     e: &[[f64; BANDS]],
+    s: &[f64],
     band: usize,
     rhs_bands: &[Vec<usize>],
-) -> Result<Mat<f64>, SolveError> {
+) -> Result<(Mat<f64>, f64), SolveError> {
     let n = f.n;
+    let k = rhs_bands.len();
     let (a, max_abs) = system_matrix(f, rho, band);
-    let mut x = Mat::from_fn(n, rhs_bands.len(), |i, k| e[i][rhs_bands[k][0]]);
+    let mut x = Mat::from_fn(n, k + 1, |i, col| {
+        if col < k {
+            e[i][rhs_bands[col][0]]
+        } else {
+            1.0
+        }
+    });
     lu_solve(a, x.as_mut(), max_abs).map_err(|()| SolveError::Singular { band })?;
 
-    let norm_a = infinity_norm(f, rho, band);
-    let n_eps = n as f64 * f64::EPSILON;
-    for (k, bands) in rhs_bands.iter().enumerate() {
-        let col = x.col_as_slice(k);
-        let b_max = col.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let e_max = column(e, bands[0]).fold(0.0f64, |m, v| m.max(v.abs()));
-        // Non-finite, or cond_∞(A) ≥ ‖A‖∞‖b‖∞/‖e‖∞ ≥ 1/(nε): numerically singular.
-        if !col.iter().all(|v| v.is_finite()) || norm_a * b_max * n_eps >= e_max {
-            return Err(SolveError::Singular { band: bands[0] });
-        }
-    }
-    Ok(x)
+    let solved: Vec<(&[f64], f64)> = rhs_bands
+        .iter()
+        .enumerate()
+        .map(|(col, bands)| {
+            let e_max = column(e, bands[0]).fold(0.0f64, |m, v| m.max(v.abs()));
+            (x.col_as_slice(col), e_max)
+        })
+        .collect();
+    let eta = operator_error(rho, s, band, f.accuracy());
+    let condition = checked_condition(
+        band,
+        infinity_norm(f, rho, band),
+        eta,
+        Some(x.col_as_slice(k)),
+        &solved,
+    )?;
+    Ok((x, condition))
 }
 
 /// `A = I − diag(ρ_c) F` (eq. 7's matrix for band `c`), column-major for faer, and `max |A_ij|`.
@@ -494,5 +680,7 @@ pub fn solve_bounces<O: Operator + ?Sized>(
         residual,
         residual_relative,
         factorizations: 0,
+        condition: [None; BANDS],
+        iterations: [0; BANDS],
     })
 }

@@ -242,6 +242,32 @@ fn singular_systems_are_errors() {
 }
 
 #[test]
+fn a_stated_form_factor_accuracy_refuses_leaky_rho_one_boxes() {
+    // Rows that fall 1e-10 short of 1 (integration error of a closed box) with ρ = 1: the
+    // operator alone looks like a slightly leaky box (cond ≈ 1e10) and would be "solved".
+    let n = 40;
+    let mut f = closed_form_factors(n, 11);
+    for v in &mut f {
+        *v *= 1.0 - 1e-10;
+    }
+    let rho = uniform(n, [1.0; 3]);
+    let mut e = uniform(n, [0.0; 3]);
+    e[0] = [1.0; 3];
+    let trusting = DenseMatrix::new(n, &f).unwrap();
+    assert!(solve_direct(&trusting, &rho, &e).is_ok());
+    // Stating that row sums are only good to 1e-9 makes every digit of that answer doubtful.
+    let stated = trusting.with_accuracy(1e-9);
+    assert_eq!(
+        solve_direct(&stated, &rho, &e),
+        Err(SolveError::Singular { band: 0 })
+    );
+    // The same statement leaves a well-posed furnace (ρ = 0.9999, cond ≈ 2e4) alone.
+    let rho = uniform(n, [0.9999; 3]);
+    let b = solve_direct(&stated, &rho, &e).unwrap().b;
+    assert!(b.iter().all(|x| x[0].is_finite() && x[0] > 0.0));
+}
+
+#[test]
 fn zero_emission_gives_zero_radiosity() {
     let n = 30;
     let f = closed_form_factors(n, 8);

@@ -1,0 +1,273 @@
+//! Reads a glTF/GLB file into world-space coloured triangles and the cameras its scene holds.
+
+use crate::math::{self, Mat4, Vec3};
+use crate::PreviewError;
+use gltf::mesh::Mode;
+use gltf::mesh::Semantic;
+use std::path::Path;
+
+/// Where vertex colours come from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ColorSource {
+    /// `COLOR_0` (white where absent) × the material's base colour: what an unlit viewer
+    /// shows.
+    Color0,
+    /// `clamp(_RADIOSITY × exposure, 0, 1)` × the material's base colour; primitives without
+    /// `_RADIOSITY` use `clamp(COLOR_0 × exposure, 0, 1)`.
+    Radiosity { exposure: f64 },
+}
+
+/// One vertex of a world-space triangle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Vertex {
+    pub position: Vec3,
+    /// Linear RGB.
+    pub color: Vec3,
+}
+
+/// A triangle in world space. The front side is the counter-clockwise one (glTF's rule); the
+/// loader has already reversed the triangles of nodes whose world matrix mirrors.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Triangle {
+    pub vertices: [Vertex; 3],
+    /// Drawn from both sides (the material's `doubleSided`); otherwise back faces are culled.
+    pub double_sided: bool,
+}
+
+/// A perspective camera placed by a node of the scene. It looks down the node's −Z axis with
+/// +Y up (glTF's convention).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraNode {
+    pub name: Option<String>,
+    pub world: Mat4,
+    /// Vertical field of view, radians.
+    pub yfov: f64,
+    pub znear: f64,
+}
+
+/// Everything the rasterizer draws.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Scene {
+    pub triangles: Vec<Triangle>,
+    /// Perspective cameras of the scene, in node order (depth first from the scene's roots).
+    pub cameras: Vec<CameraNode>,
+    /// Primitives that are points or lines, not drawn.
+    pub skipped_primitives: usize,
+}
+
+/// An axis-aligned box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Scene {
+    /// The bounding box of every triangle, or `None` when there is none.
+    pub fn bounds(&self) -> Option<Bounds> {
+        let mut points = self
+            .triangles
+            .iter()
+            .flat_map(|t| t.vertices.iter().map(|v| v.position));
+        let first = points.next()?;
+        let mut bounds = Bounds {
+            min: first,
+            max: first,
+        };
+        for p in points {
+            bounds.min = std::array::from_fn(|axis| bounds.min[axis].min(p[axis]));
+            bounds.max = std::array::from_fn(|axis| bounds.max[axis].max(p[axis]));
+        }
+        Some(bounds)
+    }
+}
+
+/// Loads the default scene of a `.gltf` or `.glb` file (the first scene when none is the
+/// default). Textures are not decoded.
+pub fn load(path: &Path, source: ColorSource) -> Result<Scene, PreviewError> {
+    let read_error = |source: gltf::Error| PreviewError::Read {
+        path: path.to_path_buf(),
+        source,
+    };
+    let gltf = gltf::Gltf::open(path).map_err(read_error)?;
+    let base = path.parent().filter(|p| !p.as_os_str().is_empty());
+    let buffers = gltf::import_buffers(&gltf.document, base.or(Some(Path::new("."))), gltf.blob)
+        .map_err(read_error)?;
+    let document = &gltf.document;
+    let invalid = |message: String| PreviewError::Invalid {
+        path: path.to_path_buf(),
+        message,
+    };
+    let scene = document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+        .ok_or_else(|| invalid("the file has no scene".to_string()))?;
+
+    let mut out = Scene::default();
+    let mut stack: Vec<(gltf::Node, Mat4)> = scene
+        .nodes()
+        .map(|n| (n, math::IDENTITY))
+        .collect::<Vec<_>>();
+    // Depth first, in the file's order: the stack pops the last pushed first.
+    stack.reverse();
+    // glTF's hierarchy is a strict tree: a node reached twice means a cycle or a shared child.
+    let mut visited = vec![false; document.nodes().len()];
+    while let Some((node, parent)) = stack.pop() {
+        match visited.get_mut(node.index()) {
+            Some(seen) if !*seen => *seen = true,
+            _ => {
+                return Err(invalid(format!(
+                    "node {} appears twice in the scene's hierarchy (a cycle or a shared child)",
+                    node.index()
+                )))
+            }
+        }
+        let local = node.transform().matrix().map(|c| c.map(f64::from));
+        let world = math::multiply(&parent, &local);
+        if let Some(camera) = node.camera() {
+            if let gltf::camera::Projection::Perspective(p) = camera.projection() {
+                out.cameras.push(CameraNode {
+                    name: node.name().or(camera.name()).map(str::to_owned),
+                    world,
+                    yfov: f64::from(p.yfov()),
+                    znear: f64::from(p.znear()),
+                });
+            }
+        }
+        if let Some(mesh) = node.mesh() {
+            for primitive in mesh.primitives() {
+                let what = || {
+                    format!(
+                        "mesh {} primitive {}",
+                        mesh.name()
+                            .map_or_else(|| mesh.index().to_string(), |n| format!("{n:?}")),
+                        primitive.index()
+                    )
+                };
+                add_primitive(&primitive, &buffers, &world, source, &mut out)
+                    .map_err(|message| invalid(format!("{}: {message}", what())))?;
+            }
+        }
+        let children: Vec<_> = node.children().collect();
+        for child in children.into_iter().rev() {
+            stack.push((child, world));
+        }
+    }
+    Ok(out)
+}
+
+/// Appends one primitive's triangles (in world space) to `out`.
+fn add_primitive(
+    primitive: &gltf::Primitive,
+    buffers: &[gltf::buffer::Data],
+    world: &Mat4,
+    source: ColorSource,
+    out: &mut Scene,
+) -> Result<(), String> {
+    if !matches!(
+        primitive.mode(),
+        Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+    ) {
+        out.skipped_primitives += 1;
+        return Ok(());
+    }
+    let get = |buffer: gltf::Buffer| buffers.get(buffer.index()).map(|data| &data[..]);
+    let reader = primitive.reader(get);
+    let positions: Vec<[f32; 3]> = reader.read_positions().ok_or("no POSITION data")?.collect();
+    let n = positions.len();
+    let color0: Option<Vec<[f32; 3]>> = reader
+        .read_colors(0)
+        .map(|colors| colors.into_rgb_f32().collect());
+    let radiosity: Option<Vec<[f32; 3]>> = match source {
+        ColorSource::Color0 => None,
+        ColorSource::Radiosity { .. } => read_radiosity(primitive, buffers)?,
+    };
+    for (name, values) in [("COLOR_0", &color0), ("_RADIOSITY", &radiosity)] {
+        if let Some(values) = values {
+            if values.len() != n {
+                return Err(format!(
+                    "{name} has {} values for {n} positions",
+                    values.len()
+                ));
+            }
+        }
+    }
+    let material = primitive.material();
+    let base = material.pbr_metallic_roughness().base_color_factor();
+    let base = [base[0], base[1], base[2]].map(f64::from);
+    let double_sided = material.double_sided();
+
+    let mirrored = math::linear_determinant(world) < 0.0;
+    let mut vertices = Vec::with_capacity(n);
+    for (k, p) in positions.iter().enumerate() {
+        let position = math::transform_point(world, p.map(f64::from));
+        let color = match (source, &radiosity, &color0) {
+            (ColorSource::Color0, _, Some(c)) => c[k].map(f64::from),
+            (ColorSource::Color0, _, None) => [1.0; 3],
+            (ColorSource::Radiosity { exposure }, Some(r), _) => {
+                r[k].map(|v| (f64::from(v) * exposure).clamp(0.0, 1.0))
+            }
+            (ColorSource::Radiosity { exposure }, None, Some(c)) => {
+                c[k].map(|v| (f64::from(v) * exposure).clamp(0.0, 1.0))
+            }
+            (ColorSource::Radiosity { .. }, None, None) => [1.0; 3],
+        };
+        let color = [color[0] * base[0], color[1] * base[1], color[2] * base[2]];
+        if !position.iter().chain(&color).all(|v| v.is_finite()) {
+            return Err(format!("vertex {k} has a non-finite position or colour"));
+        }
+        vertices.push(Vertex { position, color });
+    }
+
+    let indices: Vec<usize> = match reader.read_indices() {
+        Some(indices) => indices.into_u32().map(|i| i as usize).collect(),
+        None => (0..n).collect(),
+    };
+    if let Some(bad) = indices.iter().find(|&&i| i >= n) {
+        return Err(format!("index {bad} is out of range ({n} vertices)"));
+    }
+    let corners: Vec<[usize; 3]> = match primitive.mode() {
+        Mode::TriangleStrip => (0..indices.len().saturating_sub(2))
+            .map(|i| {
+                let odd = i % 2;
+                [indices[i], indices[i + 1 + odd], indices[i + 2 - odd]]
+            })
+            .collect(),
+        Mode::TriangleFan => (1..indices.len().saturating_sub(1))
+            .map(|i| [indices[i], indices[i + 1], indices[0]])
+            .collect(),
+        _ => indices
+            .chunks_exact(3)
+            .map(|t| [t[0], t[1], t[2]])
+            .collect(),
+    };
+    for [a, b, c] in corners {
+        // A mirroring transform turns counter-clockwise into clockwise: restore the front.
+        let order = if mirrored { [a, c, b] } else { [a, b, c] };
+        out.triangles.push(Triangle {
+            vertices: order.map(|i| vertices[i]),
+            double_sided,
+        });
+    }
+    Ok(())
+}
+
+/// The primitive's `_RADIOSITY` values (float VEC3), if it has them.
+fn read_radiosity(
+    primitive: &gltf::Primitive,
+    buffers: &[gltf::buffer::Data],
+) -> Result<Option<Vec<[f32; 3]>>, String> {
+    let Some(accessor) = primitive.get(&Semantic::Extras("RADIOSITY".into())) else {
+        return Ok(None);
+    };
+    if accessor.data_type() != gltf::accessor::DataType::F32
+        || accessor.dimensions() != gltf::accessor::Dimensions::Vec3
+        || accessor.normalized()
+    {
+        return Err("_RADIOSITY is not a float VEC3 accessor".to_string());
+    }
+    let get = |buffer: gltf::Buffer| buffers.get(buffer.index()).map(|data| &data[..]);
+    let values = gltf::accessor::Iter::<[f32; 3]>::new(accessor, get)
+        .ok_or("_RADIOSITY has no readable data")?;
+    Ok(Some(values.collect()))
+}
