@@ -260,8 +260,10 @@ impl Counts {
 /// Writes `report` as pretty JSON to `path`, atomically (temporary file, then rename).
 ///
 /// JSON has no NaN or infinity (`serde_json` would write `null`): every number is checked
-/// first, and a non-finite one is an [`ExportError::NonFinite`] naming the element (and
-/// its polygon's origin) or the field; nothing is written then.
+/// first (elements, timings, solver residual and condition, energy), and a non-finite one
+/// is an [`ExportError::NonFinite`] naming the element (and its polygon's origin) or the
+/// field; nothing is written then. (A `null` condition means "not solved as a linear
+/// system", not a NaN.)
 pub fn write_report(path: &Path, report: &Report) -> Result<(), ExportError> {
     check_finite(report)?;
     let mut json = serde_json::to_vec_pretty(report).map_err(|e| ExportError::Encode {
@@ -294,11 +296,23 @@ fn check_finite(report: &Report) -> Result<(), ExportError> {
     if let Some((stage, seconds)) = report.timings.iter().find(|(_, s)| !s.is_finite()) {
         return not_finite(format!("report timing {stage:?}: {seconds}"));
     }
-    if !all_finite(&report.solver.residual) {
-        return not_finite(format!(
-            "report solver residual {:?}",
-            report.solver.residual
-        ));
+    let solver = &report.solver;
+    if !all_finite(&solver.residual) {
+        return not_finite(format!("report solver residual {:?}", solver.residual));
+    }
+    if solver.condition.iter().flatten().any(|c| !c.is_finite()) {
+        return not_finite(format!("report solver condition {:?}", solver.condition));
+    }
+    if let Some(energy) = &report.energy {
+        let fields = [
+            ("emitted", &energy.emitted),
+            ("absorbed", &energy.absorbed),
+            ("escaped", &energy.escaped),
+            ("imbalance", &energy.imbalance),
+        ];
+        if let Some((name, values)) = fields.iter().find(|(_, v)| !all_finite(&v[..])) {
+            return not_finite(format!("report energy {name} {values:?}"));
+        }
     }
     Ok(())
 }

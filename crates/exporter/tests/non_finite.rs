@@ -4,7 +4,7 @@
 
 mod common;
 
-use bake_exporter::report::{write_report, Report, SolverInfo, SolverMethod};
+use bake_exporter::report::{write_report, EnergyInfo, Report, SolverInfo, SolverMethod};
 use bake_exporter::{write_gltf, Bake, ExportError, Shading};
 use common::{file_names, fixture, Fixture};
 use std::path::Path;
@@ -103,6 +103,8 @@ fn report_with(radiosity: &[[f64; 3]]) -> Report {
         residual: [0.0; 3],
         residual_relative: [false; 3],
         factorizations: 1,
+        condition: [Some(3.0), None, Some(2.5)],
+        iterations: [0; 3],
     };
     Report::new(
         Path::new("in.gltf"),
@@ -140,6 +142,22 @@ fn report_with_nan_is_refused_not_written_as_null() {
     report.solver.residual[2] = f64::NAN;
     let message = non_finite(write_report(&path, &report));
     assert!(message.contains("residual"), "{message}");
+
+    let mut report = report_with(&fixture.radiosity);
+    report.solver.condition[0] = Some(f64::INFINITY);
+    let message = non_finite(write_report(&path, &report));
+    assert!(message.contains("condition"), "{message}");
+
+    let mut report = report_with(&fixture.radiosity);
+    report.energy = Some(EnergyInfo {
+        emitted: [1.0; 3],
+        absorbed: [0.5, f64::NAN, 0.5],
+        escaped: [0.5; 3],
+        imbalance: [0.0; 3],
+        imbalance_relative: [true; 3],
+    });
+    let message = non_finite(write_report(&path, &report));
+    assert!(message.contains("energy absorbed"), "{message}");
 
     assert!(file_names(dir.path()).is_empty(), "nothing written");
     write_report(&path, &report_with(&fixture.radiosity)).expect("a finite report is written");
