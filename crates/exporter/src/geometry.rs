@@ -45,7 +45,7 @@ pub(crate) fn build(bake: &Bake) -> Result<Vec<NodeMesh>, ExportError> {
         for &element in elements {
             writer.add_element(element)?;
         }
-        let data = writer.finish()?;
+        let data = writer.finish();
         match node_meshes.last_mut() {
             Some(last) if last.node == node => last.primitives.push(data),
             _ => node_meshes.push(NodeMesh {
@@ -86,9 +86,6 @@ fn check_bake(bake: &Bake) -> Result<(), ExportError> {
     if !bake.exposure.is_finite() {
         return Err(invalid(format!("exposure {} is not finite", bake.exposure)));
     }
-    if let Some(i) = bake.radiosity.iter().position(|b| !all_finite(b)) {
-        return Err(invalid(format!("radiosity of element {i} is not finite")));
-    }
     for polygon in &bake.scene.polygons {
         check_origin(bake.scene, &polygon.origin)?;
     }
@@ -99,6 +96,12 @@ fn check_bake(bake: &Bake) -> Result<(), ExportError> {
                 element.polygon,
                 bake.scene.polygons.len()
             )));
+        }
+        let b = bake.radiosity[i];
+        if !all_finite(&b) {
+            return Err(ExportError::NonFinite {
+                what: format!("{}: radiosity {b:?}", element_name(bake, i)),
+            });
         }
         if element.sides != 3 && element.sides != 4 {
             return Err(invalid(format!("element {i} has {} sides", element.sides)));
@@ -140,6 +143,21 @@ fn check_origin(scene: &Scene, origin: &Origin) -> Result<(), ExportError> {
 
 fn invalid(message: String) -> ExportError {
     ExportError::InvalidData(message)
+}
+
+/// `element 3 (polygon 1: node 0, mesh 0, primitive 0, face 2, front)`, for messages.
+/// The element and its polygon exist (checked by `check_bake`).
+fn element_name(bake: &Bake, index: usize) -> String {
+    let polygon = bake.mesh.elements[index].polygon;
+    let origin = bake.scene.polygons[polygon as usize].origin;
+    let side = match origin.side {
+        importer::Side::Front => "front",
+        importer::Side::Back => "back",
+    };
+    format!(
+        "element {index} (polygon {polygon}: node {}, mesh {}, primitive {}, face {}, {side})",
+        origin.node, origin.mesh, origin.primitive, origin.face
+    )
 }
 
 fn all_finite(values: &[f64]) -> bool {
@@ -206,17 +224,23 @@ impl<'a> PrimitiveWriter<'a> {
 
     fn add_element(&mut self, index: usize) -> Result<(), ExportError> {
         let element = &self.bake.mesh.elements[index];
-        let normal = self
-            .space
-            .normal(element.normal)
-            .ok_or_else(|| invalid(format!("element {index} has no usable normal")))?;
+        let normal = self.space.normal(element.normal).ok_or_else(|| {
+            let what = format!(
+                "{}: normal {}",
+                element_name(self.bake, index),
+                element.normal
+            );
+            if element.normal.is_finite() {
+                invalid(format!("{what} cannot be normalized"))
+            } else {
+                ExportError::NonFinite { what }
+            }
+        })?;
         let mut corners = Vec::with_capacity(4);
         for &vertex in element.corner_indices() {
             let output = match self.smoothed {
-                Some(values) => {
-                    self.shared_vertex(element.polygon, vertex, normal, values[vertex as usize])
-                }
-                None => self.push_vertex(vertex, normal, self.bake.radiosity[index]),
+                Some(values) => self.shared_vertex(index, vertex, normal, values[vertex as usize]),
+                None => self.push_vertex(index, vertex, normal, self.bake.radiosity[index]),
             }?;
             corners.push(output);
         }
@@ -227,23 +251,28 @@ impl<'a> PrimitiveWriter<'a> {
         Ok(())
     }
 
+    /// The output vertex of `vertex` in the polygon of `element`, pushed on first use.
     fn shared_vertex(
         &mut self,
-        polygon: u32,
+        element: usize,
         vertex: u32,
         normal: DVec3,
         value: [f64; 3],
     ) -> Result<u32, ExportError> {
+        let polygon = self.bake.mesh.elements[element].polygon;
         if let Some(&output) = self.shared.get(&(polygon, vertex)) {
             return Ok(output);
         }
-        let output = self.push_vertex(vertex, normal, value)?;
+        let output = self.push_vertex(element, vertex, normal, value)?;
         self.shared.insert((polygon, vertex), output);
         Ok(output)
     }
 
+    /// Appends one output vertex of `element`, after checking that every value stored for
+    /// it is finite as f32.
     fn push_vertex(
         &mut self,
+        element: usize,
         vertex: u32,
         normal: DVec3,
         value: [f64; 3],
@@ -251,19 +280,31 @@ impl<'a> PrimitiveWriter<'a> {
         let output = u32::try_from(self.data.positions.len())
             .map_err(|_| invalid("more than 2^32 vertices in one primitive".into()))?;
         let world = self.bake.mesh.vertices[vertex as usize];
-        let position = to_f32(self.space.position(world).to_array());
-        if !position.iter().all(|p| p.is_finite()) {
-            return Err(invalid(format!(
-                "vertex {vertex} ({world}) does not fit in f32 in its node's space"
-            )));
-        }
         let exposure = self.bake.exposure;
+        let attributes = [
+            ("POSITION", to_f32(self.space.position(world).to_array())),
+            ("NORMAL", to_f32(normal.to_array())),
+            (
+                "COLOR_0",
+                to_f32(value.map(|v| (v * exposure).clamp(0.0, 1.0))),
+            ),
+            ("_RADIOSITY", to_f32(value)),
+        ];
+        for (name, stored) in &attributes {
+            if !all_finite_f32(stored) {
+                return Err(ExportError::NonFinite {
+                    what: format!(
+                        "{}: {name} {stored:?} of mesh vertex {vertex} (as f32)",
+                        element_name(self.bake, element)
+                    ),
+                });
+            }
+        }
+        let [position, normal, color, radiosity] = attributes.map(|(_, stored)| stored);
         self.data.positions.push(position);
-        self.data.normals.push(to_f32(normal.to_array()));
-        self.data
-            .colors
-            .push(to_f32(value.map(|v| (v * exposure).clamp(0.0, 1.0))));
-        self.data.radiosity.push(to_f32(value));
+        self.data.normals.push(normal);
+        self.data.colors.push(color);
+        self.data.radiosity.push(radiosity);
         Ok(output)
     }
 
@@ -275,13 +316,8 @@ impl<'a> PrimitiveWriter<'a> {
         }
     }
 
-    fn finish(self) -> Result<PrimitiveData, ExportError> {
-        if let Some(i) = self.data.radiosity.iter().position(|r| !all_finite_f32(r)) {
-            return Err(invalid(format!(
-                "radiosity at output vertex {i} does not fit in f32"
-            )));
-        }
-        Ok(self.data)
+    fn finish(self) -> PrimitiveData {
+        self.data
     }
 }
 

@@ -55,11 +55,20 @@ pub enum ExportError {
     InvalidData(String),
     #[error("cannot encode {what}: {message}")]
     Encode { what: &'static str, message: String },
+    /// A value about to be written is NaN or infinite (as stored: f32 in the glTF). `what`
+    /// names the element, its polygon's origin, the attribute and the value. Nothing is
+    /// written.
+    #[error("{what} is not finite")]
+    NonFinite { what: String },
 }
 
 /// Writes the baked scene to `path`: `.gltf` (JSON plus `<stem>.bin` beside it) or `.glb`,
 /// chosen by the extension (case-insensitive). Files are written to temporaries in the same
 /// directory and renamed into place; on error no partial output is left.
+///
+/// Every radiosity value, and every position, normal, `COLOR_0` and `_RADIOSITY` value as
+/// it will be stored (f32), is checked before anything is written: a NaN or infinity is an
+/// [`ExportError::NonFinite`] naming the element and its polygon's origin.
 pub fn write_gltf(path: &Path, bake: &Bake) -> Result<(), ExportError> {
     let format = files::OutputFormat::from_path(path)?;
     let primitives = geometry::build(bake)?;

@@ -55,6 +55,13 @@ pub struct Counts {
     pub primitives_skipped: usize,
     pub ngons_split: usize,
     pub faces_read: usize,
+    /// Faces dropped as duplicates of an earlier face (absent in older reports: 0).
+    #[serde(default)]
+    pub duplicates_dropped: usize,
+    /// Faces wound opposite to their neighbours, kept as authored (absent in older
+    /// reports: 0).
+    #[serde(default)]
+    pub against_winding: usize,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -244,18 +251,93 @@ impl Counts {
             primitives_skipped: stats.primitives_skipped,
             ngons_split: stats.ngons_split,
             faces_read: stats.faces_read,
+            duplicates_dropped: stats.duplicates_dropped,
+            against_winding: stats.against_winding,
         }
     }
 }
 
 /// Writes `report` as pretty JSON to `path`, atomically (temporary file, then rename).
+///
+/// JSON has no NaN or infinity (`serde_json` would write `null`): every number is checked
+/// first (elements, timings, solver residual and condition, energy), and a non-finite one
+/// is an [`ExportError::NonFinite`] naming the element (and its polygon's origin) or the
+/// field; nothing is written then. (A `null` condition means "not solved as a linear
+/// system", not a NaN.)
 pub fn write_report(path: &Path, report: &Report) -> Result<(), ExportError> {
+    check_finite(report)?;
     let mut json = serde_json::to_vec_pretty(report).map_err(|e| ExportError::Encode {
         what: "the bake report",
         message: e.to_string(),
     })?;
     json.push(b'\n');
     files::write_atomically(path, &json)
+}
+
+/// Every float of the report must be finite.
+fn check_finite(report: &Report) -> Result<(), ExportError> {
+    let not_finite = |what: String| Err(ExportError::NonFinite { what });
+    for (i, element) in report.elements.iter().enumerate() {
+        let fields: [(&str, &[f64]); 6] = [
+            ("centroid", &element.centroid),
+            ("normal", &element.normal),
+            ("area", std::slice::from_ref(&element.area)),
+            ("rho", &element.rho),
+            ("e", &element.e),
+            ("b", &element.b),
+        ];
+        if let Some((name, values)) = fields.iter().find(|(_, v)| !all_finite(v)) {
+            return not_finite(format!(
+                "report {}: {name} {values:?}",
+                element_name(report, i)
+            ));
+        }
+    }
+    if let Some((stage, seconds)) = report.timings.iter().find(|(_, s)| !s.is_finite()) {
+        return not_finite(format!("report timing {stage:?}: {seconds}"));
+    }
+    let solver = &report.solver;
+    if !all_finite(&solver.residual) {
+        return not_finite(format!("report solver residual {:?}", solver.residual));
+    }
+    if solver.condition.iter().flatten().any(|c| !c.is_finite()) {
+        return not_finite(format!("report solver condition {:?}", solver.condition));
+    }
+    if let Some(energy) = &report.energy {
+        let fields = [
+            ("emitted", &energy.emitted),
+            ("absorbed", &energy.absorbed),
+            ("escaped", &energy.escaped),
+            ("imbalance", &energy.imbalance),
+        ];
+        if let Some((name, values)) = fields.iter().find(|(_, v)| !all_finite(&v[..])) {
+            return not_finite(format!("report energy {name} {values:?}"));
+        }
+    }
+    Ok(())
+}
+
+fn all_finite(values: &[f64]) -> bool {
+    values.iter().all(|v| v.is_finite())
+}
+
+/// `element 3 (polygon 1: node 0, mesh 0, primitive 0, face 2, front)`.
+fn element_name(report: &Report, index: usize) -> String {
+    let polygon = report.elements[index].polygon;
+    match report.polygons.get(polygon as usize) {
+        Some(p) => format!(
+            "element {index} (polygon {polygon}: node {}, mesh {}, primitive {}, face {}, {})",
+            p.node,
+            p.mesh,
+            p.primitive,
+            p.face,
+            match p.side {
+                SideName::Front => "front",
+                SideName::Back => "back",
+            }
+        ),
+        None => format!("element {index} (polygon {polygon})"),
+    }
 }
 
 /// Reads a report written by [`write_report`].

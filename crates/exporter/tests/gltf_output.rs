@@ -558,7 +558,7 @@ fn failing_writes_leave_nothing() {
     };
     let result = write_gltf(&dir.path().join("out.gltf"), &nan);
     assert!(
-        matches!(result, Err(ExportError::InvalidData(_))),
+        matches!(result, Err(ExportError::NonFinite { .. })),
         "{result:?}"
     );
 

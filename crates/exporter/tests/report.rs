@@ -65,6 +65,8 @@ fn report_holds_the_scene_and_results() {
             primitives_skipped: 1,
             ngons_split: 0,
             faces_read: 12,
+            duplicates_dropped: 2,
+            against_winding: 3,
         }
     );
     assert_eq!(report.warnings, fixture.scene.warnings);

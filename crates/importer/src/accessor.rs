@@ -111,9 +111,8 @@ fn read_components(
             read_strided(data, offset, stride, element, count)
                 .map_err(|e| format!("accessor {index}: {e}"))?
         }
-        (None, None) => return Err(format!("accessor {index} has no buffer view")),
-        // Sparse over zeros.
-        (None, Some(_)) => vec![0.0; count * element.components],
+        // Zeros (glTF 2.0, "Accessors"), possibly with sparse values over them.
+        (None, _) => vec![0.0; count * element.components],
     };
     if let Some(sparse) = &accessor.sparse {
         apply_sparse(root, buffers, sparse, element, count, &mut values)

@@ -17,20 +17,31 @@ use gltf::json::Root;
 use std::collections::hash_map::{Entry, HashMap};
 use std::path::Path;
 
-/// Reads a `.gltf` or `.glb` file (told apart by the GLB magic, not the extension).
+/// Reads a `.gltf` or `.glb` file (told apart by the GLB magic, not the extension);
+/// external buffers are read from the file's directory.
 pub(crate) fn load(path: &Path) -> Result<Scene, ImportError> {
     let bytes = std::fs::read(path).map_err(|source| ImportError::Io {
         path: path.to_owned(),
         source,
     })?;
-    let (json, blob) = split_container(&bytes)?;
+    load_bytes(&bytes, Some(path.parent().unwrap_or(Path::new("."))))
+}
+
+/// Reads glTF JSON or a GLB container from memory. With `base`, relative buffer URIs are
+/// files in that directory; without it only embedded buffers (data URIs, the GLB's BIN
+/// chunk) can be read and an external one is an error.
+pub(crate) fn load_bytes(bytes: &[u8], base: Option<&Path>) -> Result<Scene, ImportError> {
+    let (json, blob) = split_container(bytes)?;
     let root: Root = gltf::json::deserialize::from_slice(json)
         .map_err(|e| ImportError::Gltf(one_line(&e.to_string())))?;
     check_position_indices(&root)?;
-    let document = gltf::Document::from_json(root).map_err(|e| gltf_error(&e))?;
+    validate(&root)?;
+    let document = gltf::Document::from_json_without_validation(root);
     check_buffer_uris(&document)?;
-    let base = path.parent().unwrap_or(Path::new("."));
-    let buffers = gltf::import_buffers(&document, Some(base), blob.map(<[u8]>::to_vec))
+    if let Some(base) = base {
+        check_buffer_files(&document, base)?;
+    }
+    let buffers = gltf::import_buffers(&document, base, blob.map(<[u8]>::to_vec))
         .map_err(|e| buffer_error(&document, base, &e))?;
     build_scene(&document, &buffers)
 }
@@ -81,6 +92,42 @@ fn split_container(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), ImportError> 
     Ok((json, bin))
 }
 
+/// The `gltf` crate's validation, less two kinds of error that do not make a file
+/// unusable here: an accessor without a buffer view or sparse values (valid glTF 2.0:
+/// "the accessor MUST be initialized with zeros"), and anything inside the objects the
+/// importer never reads (textures, images, samplers, animations, skins, cameras).
+fn validate(root: &Root) -> Result<(), ImportError> {
+    use gltf::json::validation::Validate;
+    let mut errors = Vec::new();
+    root.validate(root, gltf::json::Path::new, &mut |path, error| {
+        let path = path();
+        if !tolerated(path.as_str(), error) {
+            errors.push((path, error));
+        }
+    });
+    if errors.is_empty() {
+        Ok(())
+    } else {
+        Err(gltf_error(&gltf::Error::Validation(errors)))
+    }
+}
+
+/// See [`validate`].
+fn tolerated(path: &str, error: gltf::json::validation::Error) -> bool {
+    const UNREAD: [&str; 6] = [
+        "textures[",
+        "images[",
+        "samplers[",
+        "animations[",
+        "skins[",
+        "cameras[",
+    ];
+    let zero_accessor = error == gltf::json::validation::Error::Missing
+        && path.starts_with("accessors[")
+        && path.ends_with("].bufferView");
+    zero_accessor || UNREAD.iter().any(|object| path.starts_with(object))
+}
+
 /// One line for a `gltf` error (validation errors list the first and count the rest).
 fn gltf_error(e: &gltf::Error) -> ImportError {
     let text = match e {
@@ -103,8 +150,13 @@ fn one_line(text: &str) -> String {
 
 /// `gltf::import_buffers` reports an unreadable buffer file without its name: name the first
 /// external buffer file that cannot be opened.
-fn buffer_error(document: &gltf::Document, base: &Path, e: &gltf::Error) -> ImportError {
-    if let gltf::Error::Io(io) = e {
+fn buffer_error(document: &gltf::Document, base: Option<&Path>, e: &gltf::Error) -> ImportError {
+    if let (gltf::Error::ExternalReferenceInSliceImport, None) = (e, base) {
+        return ImportError::Gltf(
+            "a buffer refers to an external file, which cannot be read without a directory".into(),
+        );
+    }
+    if let (gltf::Error::Io(io), Some(base)) = (e, base) {
         let unreadable = document.buffers().find_map(|buffer| match buffer.source() {
             gltf::buffer::Source::Uri(uri) if !uri.contains(':') => {
                 let file = String::from_utf8_lossy(&percent_decode(uri)).into_owned();
@@ -151,6 +203,34 @@ fn check_buffer_uris(document: &gltf::Document) -> Result<(), ImportError> {
                     buffer.index()
                 )));
             }
+        }
+    }
+    Ok(())
+}
+
+/// The file behind each external buffer URI (relative, or `file:`) must be a regular file:
+/// `gltf::import_buffers` reads it to the end, which never ends for `/dev/zero` or a FIFO.
+/// A file that does not exist is left to the reader, which reports it by name.
+fn check_buffer_files(document: &gltf::Document, base: &Path) -> Result<(), ImportError> {
+    for buffer in document.buffers() {
+        let gltf::buffer::Source::Uri(uri) = buffer.source() else {
+            continue;
+        };
+        let file = if let Some(rest) = uri.strip_prefix("file:") {
+            Path::new(rest.strip_prefix("//").unwrap_or(rest)).to_owned()
+        } else if uri.contains(':') {
+            continue;
+        } else {
+            base.join(String::from_utf8_lossy(&percent_decode(uri)).as_ref())
+        };
+        match std::fs::metadata(&file) {
+            Ok(meta) if !meta.is_file() => {
+                return Err(ImportError::Gltf(format!(
+                    "buffer {}: {uri:?} is not a regular file",
+                    buffer.index()
+                )))
+            }
+            _ => {}
         }
     }
     Ok(())
@@ -215,6 +295,7 @@ fn build_scene(
     let mut cache: HashMap<(usize, usize), Option<LocalPrimitive>> = HashMap::new();
     let mut checked = vec![false; materials.len()];
     let mut instances = Vec::new();
+    let mut face_count = 0;
     for &node_index in &baked_nodes {
         let node = &layout.nodes[node_index];
         let Some(mesh_index) = node.mesh else {
@@ -227,6 +308,9 @@ fn build_scene(
         })?;
         let mesh_name = describe("mesh", mesh.name.as_deref(), mesh_index);
         let node_name = describe("node", node.name.as_deref(), node_index);
+        if !placeable(node, &node_name, &mut warnings)? {
+            continue;
+        }
         for (p, primitive) in mesh.primitives.iter().enumerate() {
             let label = format!("{mesh_name}, primitive {p}");
             let key = (mesh_index, p);
@@ -244,6 +328,7 @@ fn build_scene(
             let Some(local) = local.as_ref() else {
                 continue;
             };
+            polygon::count_faces(&mut face_count, local.triangles.len())?;
             let material_index = material_of(primitive.material.map(|m| m.value()));
             let material = materials.get(material_index).ok_or_else(|| {
                 ImportError::Gltf(format!("{label}: material {material_index} does not exist"))
@@ -289,6 +374,26 @@ fn build_scene(
         stats,
         warnings,
     })
+}
+
+/// Whether a node's mesh can be baked in place. A singular world matrix (a scale of 0
+/// on some axis) flattens the mesh: what is left cannot be written back in the node's
+/// local space, so the node is skipped with a warning. A non-finite one is an error.
+fn placeable(node: &Node, name: &str, warnings: &mut Vec<String>) -> Result<bool, ImportError> {
+    let determinant = node.world.determinant();
+    if !determinant.is_finite() {
+        return Err(ImportError::InvalidValue {
+            what: name.to_owned(),
+            problem: "world transform is not finite".into(),
+        });
+    }
+    if determinant == 0.0 {
+        warnings.push(format!(
+            "{name}: skipped (its world transform is singular: a scale of 0 flattens it)"
+        ));
+        return Ok(false);
+    }
+    Ok(true)
 }
 
 /// True when some primitive has no material (and so uses the glTF default material).

@@ -136,6 +136,11 @@ pub struct ImportStats {
     pub primitives_skipped: usize,
     /// Polygons with more than 4 vertices split into triangles/quads.
     pub ngons_split: usize,
+    /// Faces dropped because an earlier face of the same primitive has the same vertices in
+    /// the same order (either order for a double-sided material).
+    pub duplicates_dropped: usize,
+    /// Faces wound opposite to their neighbours (kept as authored; see [`load`]).
+    pub against_winding: usize,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -167,6 +172,9 @@ pub enum ImportError {
     InvalidValue { what: String, problem: String },
     #[error("nothing left to bake: the scene has no polygons with area")]
     Empty,
+    /// The scene exceeds a memory guard of the importer.
+    #[error("too large: {0}")]
+    TooLarge(String),
 }
 
 /// Reads `path` (`.gltf`, `.glb` or `.obj`, by extension, case-insensitive).
@@ -176,6 +184,8 @@ pub enum ImportError {
 ///   × `KHR_materials_emissive_strength`; textures and vertex colours are ignored. A
 ///   primitive without a material uses the glTF default material (ρ = 1, e = 0,
 ///   single-sided), appended after the file's materials when some primitive needs it.
+///   A node whose world matrix is singular (a scale of 0) is skipped with a warning: its
+///   bake could not be written back in its local space.
 /// - OBJ: one mesh (and one identity node) per `tobj` model, all in one scene. ρ = `Kd`,
 ///   e = `Ke`, single-sided. A face without a material (no `usemtl`, a missing MTL file or
 ///   an unknown name) uses a neutral grey default: ρ = 0.8, e = 0, appended after the MTL
@@ -189,18 +199,27 @@ pub enum ImportError {
 /// 2. consecutive repeated vertices (closer than 1e-9 × scene size) are removed; faces
 ///    left with < 3 vertices or area ≤ 1e-12 × scene size² are dropped
 ///    ([`ImportStats::degenerate_dropped`], one warning per instance);
-/// 3. consecutive source triangles t, t+1 sharing an edge (opposite directions), facing
+/// 3. a face with the same vertices (exact positions) in the same cyclic order as an
+///    earlier face of the same primitive instance is dropped
+///    ([`ImportStats::duplicates_dropped`], one warning per instance); for a double-sided
+///    material the reverse order is a duplicate too. Two coincident single-sided faces of
+///    opposite orientation are a thin two-sided sheet and both kept. Winding is taken as
+///    authored (it defines the front side); faces that traverse a shared edge in the same
+///    direction as their neighbour are counted against the majority of their connected
+///    surface ([`ImportStats::against_winding`], one warning per instance; not checked for
+///    double-sided materials, whose sides are both surfaces);
+/// 4. consecutive source triangles t, t+1 sharing an edge (opposite directions), facing
 ///    the same way, coplanar (every vertex within 1e-6 × the quad's size of its mean
 ///    plane) and forming a strictly convex quad are merged ([`ImportStats::quads_merged`]);
-/// 4. OBJ polygons with > 4 vertices are ear-clipped (a fan from vertex 0 when convex) and
+/// 5. OBJ polygons with > 4 vertices are ear-clipped (a fan from vertex 0 when convex) and
 ///    their triangles merged pairwise into quads where planar and convex
 ///    ([`ImportStats::ngons_split`]); a concave quad is cut along the diagonal from its
 ///    reflex corner; a non-planar quad (same 1e-6 rule) is cut into two triangles with a
 ///    warning;
-/// 5. a node whose world matrix mirrors (negative determinant) has its faces' vertex
+/// 6. a node whose world matrix mirrors (negative determinant) has its faces' vertex
 ///    order reversed, so every polygon is counter-clockwise about its Newell normal,
 ///    which points to the front;
-/// 6. a double-sided material adds, right after each front polygon, a [`Side::Back`]
+/// 7. a double-sided material adds, right after each front polygon, a [`Side::Back`]
 ///    polygon with reversed vertices and negated normal.
 ///
 /// No polygon left is [`ImportError::Empty`].
@@ -213,6 +232,88 @@ pub fn load(path: &Path) -> Result<Scene, ImportError> {
         Some("gltf" | "glb") => gltf_in::load(path),
         Some("obj") => obj_in::load(path),
         _ => Err(ImportError::UnsupportedExtension),
+    }
+}
+
+/// A scene format, for [`load_bytes`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// glTF 2.0: JSON (`.gltf`) or a GLB container (`.glb`), told apart by the GLB magic.
+    Gltf,
+    /// Wavefront OBJ, without a material library (see [`load_obj_bytes`]).
+    Obj,
+}
+
+/// Reads a scene from memory, as [`load`] reads a file, except that nothing outside
+/// `bytes` is read: a glTF buffer must be embedded (a `data:` URI or the GLB's BIN chunk;
+/// an external one is an [`ImportError::Gltf`]), and an OBJ's `mtllib` is missing (its
+/// faces use the default grey, with a warning).
+pub fn load_bytes(bytes: &[u8], format: Format) -> Result<Scene, ImportError> {
+    match format {
+        Format::Gltf => gltf_in::load_bytes(bytes, None),
+        Format::Obj => obj_in::load_bytes(bytes, None),
+    }
+}
+
+/// Reads OBJ text from memory with one material library: every `mtllib` line reads `mtl`.
+pub fn load_obj_bytes(obj: &[u8], mtl: Option<&[u8]>) -> Result<Scene, ImportError> {
+    obj_in::load_bytes(obj, mtl)
+}
+
+/// The fuzz targets' harnesses (`fuzz/`), here so that the regression test replays a
+/// saved input exactly as the fuzzer ran it. Not part of the API.
+#[doc(hidden)]
+pub mod fuzzing {
+    use crate::{load_bytes, load_obj_bytes, Format};
+
+    /// glTF bytes as given (JSON, or GLB by its magic), then, unless they already are a
+    /// GLB, split at the first NUL into the JSON and BIN chunks of a well-formed GLB so
+    /// that mutations reach binary files' JSON without breaking the container first.
+    pub fn gltf(data: &[u8]) {
+        let _ = load_bytes(data, Format::Gltf);
+        if !data.starts_with(b"glTF") {
+            let (json, bin) = split_at_nul(data);
+            let _ = load_bytes(&glb(json, bin), Format::Gltf);
+        }
+    }
+
+    /// OBJ text before the first NUL, and the MTL every `mtllib` reads after it (none
+    /// without a NUL).
+    pub fn obj(data: &[u8]) {
+        let (obj, mtl) = split_at_nul(data);
+        let _ = load_obj_bytes(obj, mtl);
+    }
+
+    fn split_at_nul(data: &[u8]) -> (&[u8], Option<&[u8]>) {
+        match data.iter().position(|&b| b == 0) {
+            Some(at) => (&data[..at], Some(&data[at + 1..])),
+            None => (data, None),
+        }
+    }
+
+    /// A GLB container (glTF 2.0, "GLB File Format") holding `json` and maybe `bin`.
+    fn glb(json: &[u8], bin: Option<&[u8]>) -> Vec<u8> {
+        let pad = |bytes: &[u8], with: u8| {
+            let mut padded = bytes.to_vec();
+            padded.resize(bytes.len().next_multiple_of(4), with);
+            padded
+        };
+        let json = pad(json, b' ');
+        let bin = bin.map(|b| pad(b, 0));
+        let total = 12 + 8 + json.len() + bin.as_ref().map_or(0, |b| 8 + b.len());
+        let mut out = Vec::with_capacity(total);
+        out.extend_from_slice(b"glTF");
+        out.extend_from_slice(&2u32.to_le_bytes());
+        out.extend_from_slice(&(total as u32).to_le_bytes());
+        out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"JSON");
+        out.extend_from_slice(&json);
+        if let Some(bin) = bin {
+            out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+            out.extend_from_slice(b"BIN\0");
+            out.extend_from_slice(&bin);
+        }
+        out
     }
 }
 

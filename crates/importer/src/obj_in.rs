@@ -23,14 +23,51 @@ pub(crate) const DEFAULT_RHO: f64 = 0.8;
 /// The most vertices one face may have: ear clipping is quadratic to cubic in it.
 const MAX_FACE_VERTICES: usize = 1024;
 
-/// Reads an OBJ file and the MTL libraries it names.
+/// Reads an OBJ file and the MTL libraries it names (relative to the file's directory).
 pub(crate) fn load(path: &Path) -> Result<Scene, ImportError> {
     let bytes = std::fs::read(path).map_err(|source| ImportError::Io {
         path: path.to_owned(),
         source,
     })?;
-    let checked = check_obj(&String::from_utf8_lossy(&bytes))?;
     let dir = path.parent().unwrap_or(Path::new("."));
+    let read_mtl = |name: &Path| {
+        let path = dir.join(name);
+        (path.display().to_string(), read_regular_file(&path))
+    };
+    load_with(&bytes, &path.display().to_string(), &read_mtl)
+}
+
+/// Reads a file that must be a regular one: reading `/dev/zero` or a FIFO named by
+/// `mtllib` would never end.
+fn read_regular_file(path: &Path) -> std::io::Result<Vec<u8>> {
+    if !std::fs::metadata(path)?.is_file() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file",
+        ));
+    }
+    std::fs::read(path)
+}
+
+/// Reads OBJ text from memory; every `mtllib` it names reads `mtl` (none: every material
+/// library is missing, and faces fall back to the default material).
+pub(crate) fn load_bytes(obj: &[u8], mtl: Option<&[u8]>) -> Result<Scene, ImportError> {
+    let read_mtl = |name: &Path| {
+        let bytes = mtl.map(<[u8]>::to_vec).ok_or_else(|| {
+            std::io::Error::new(std::io::ErrorKind::NotFound, "no material library given")
+        });
+        (name.display().to_string(), bytes)
+    };
+    load_with(obj, "the OBJ", &read_mtl)
+}
+
+/// Reads a material library by the name an OBJ gives it: the name to show in messages, and
+/// its bytes.
+type ReadMtl<'a> = dyn Fn(&Path) -> (String, std::io::Result<Vec<u8>>) + 'a;
+
+/// Reads OBJ bytes, named `source` in messages, and the MTL libraries `read_mtl` returns.
+fn load_with(bytes: &[u8], source: &str, read_mtl: &ReadMtl) -> Result<Scene, ImportError> {
+    let checked = check_obj(&String::from_utf8_lossy(bytes))?;
     let mtl_error = RefCell::new(None);
     let mtl_warnings = RefCell::new(Vec::new());
     // `..Default::default()` covers fields that other crates' `tobj` features may add.
@@ -43,9 +80,9 @@ pub(crate) fn load(path: &Path) -> Result<Scene, ImportError> {
         ..Default::default()
     };
     let (models, mtl) = tobj::load_obj_buf(&mut checked.text.as_bytes(), &options, |name| {
-        load_mtl(dir, name, &mtl_error, &mtl_warnings)
+        load_mtl(read_mtl(name), &mtl_error, &mtl_warnings)
     })
-    .map_err(|e| ImportError::Obj(format!("{}: {e}", path.display())))?;
+    .map_err(|e| ImportError::Obj(format!("{source}: {e}")))?;
     if let Some(error) = mtl_error.into_inner() {
         return Err(error);
     }
@@ -177,21 +214,19 @@ fn check_face_vertex(
     Ok(())
 }
 
-/// The material loader handed to `tobj`: reads `dir/name`, checks its colour lines, and
-/// records a missing file as a warning and a malformed one as an error.
+/// The material loader handed to `tobj`: takes what `read_mtl` returned for one library
+/// (its name for messages, its bytes), checks its colour lines, and records a missing
+/// library as a warning and a malformed one as an error.
 fn load_mtl(
-    dir: &Path,
-    name: &Path,
+    (name, bytes): (String, std::io::Result<Vec<u8>>),
     error: &RefCell<Option<ImportError>>,
     warnings: &RefCell<Vec<String>>,
 ) -> tobj::MTLLoadResult {
-    let path = dir.join(name);
-    let bytes = match std::fs::read(&path) {
+    let bytes = match bytes {
         Ok(bytes) => bytes,
         Err(e) => {
             warnings.borrow_mut().push(format!(
-                "cannot read material library {} ({e}): its materials fall back to the default",
-                path.display()
+                "cannot read material library {name} ({e}): its materials fall back to the default"
             ));
             return Err(tobj::LoadError::OpenFileFailed);
         }
@@ -199,7 +234,7 @@ fn load_mtl(
     let fail = |message: String| {
         error
             .borrow_mut()
-            .get_or_insert(ImportError::Obj(format!("{}: {message}", path.display())));
+            .get_or_insert(ImportError::Obj(format!("{name}: {message}")));
         tobj::LoadError::MaterialParseError
     };
     let text = check_mtl(&String::from_utf8_lossy(&bytes)).map_err(fail)?;
@@ -284,6 +319,7 @@ fn build_scene(
     let mut layout = Layout::default();
     let mut instances = Vec::new();
     let mut without_material = 0;
+    let mut face_count = 0;
     for model in models.iter().filter(|m| !m.mesh.indices.is_empty()) {
         let index = layout.meshes.len();
         let label = format!(
@@ -320,9 +356,11 @@ fn build_scene(
             mesh: Some(index),
             world: DMat4::IDENTITY,
         });
+        let faces =
+            model_faces(&model.mesh).map_err(|e| ImportError::Obj(format!("{label}: {e}")))?;
+        polygon::count_faces(&mut face_count, faces.len())?;
         instances.push(Instance {
-            faces: model_faces(&model.mesh)
-                .map_err(|e| ImportError::Obj(format!("{label}: {e}")))?,
+            faces,
             label,
             place: String::new(),
             origin: Origin {

@@ -4,13 +4,17 @@
 //! 1. non-finite positions are an error;
 //! 2. repeated consecutive vertices are removed, and faces left with < 3 vertices or zero
 //!    area are dropped (one summary warning per instance);
-//! 3. each face becomes pieces: a triangle stays a triangle; a planar convex quad stays a
+//! 3. a face with the same vertices in the same cyclic order as an earlier face of the
+//!    instance is dropped (for a double-sided material, in either order: its back side is
+//!    already a surface); faces wound against their neighbours are counted (one warning)
+//!    and kept as authored;
+//! 4. each face becomes pieces: a triangle stays a triangle; a planar convex quad stays a
 //!    quad; a concave quad is split along its inner diagonal; a non-planar quad is split
 //!    into two triangles (warning); a polygon with > 4 vertices is ear-clipped and its
 //!    triangles merged pairwise back into quads where they form planar convex ones;
-//! 4. consecutive source triangles (faces t and t+1) that share an edge, lie in one plane
+//! 5. consecutive source triangles (faces t and t+1) that share an edge, lie in one plane
 //!    and form a strictly convex quad are merged into that quad;
-//! 5. the normal is computed with Newell's method from the (counter-clockwise) vertices,
+//! 6. the normal is computed with Newell's method from the (counter-clockwise) vertices,
 //!    and double-sided materials get a reversed back polygon right after each front one.
 //!
 //! The callers hand in faces already counter-clockwise seen from the front in world space
@@ -18,6 +22,7 @@
 
 use crate::{ImportError, ImportStats, Origin, Polygon, Side};
 use glam::DVec3;
+use std::collections::{HashMap, HashSet};
 
 /// Positions closer than this × scene size are the same point.
 const SAME_POINT: f64 = 1e-9;
@@ -28,6 +33,23 @@ const PLANAR: f64 = 1e-6;
 /// A corner turns left (convex) when |e1 × e2|·n exceeds this × |e1||e2| (the sine of the
 /// turning angle); it is reflex when that is below minus this.
 const TURN: f64 = 1e-9;
+
+/// The most source faces a scene may have, summed over every instance: a memory guard
+/// (each face is placed in world space per instance before cleaning), far above what the
+/// solver can take (a mesh used by many nodes multiplies its faces).
+pub(crate) const MAX_SCENE_FACES: usize = 1 << 22;
+
+/// Adds `more` faces to the running `total`, refusing a scene over [`MAX_SCENE_FACES`].
+pub(crate) fn count_faces(total: &mut usize, more: usize) -> Result<(), ImportError> {
+    *total = total.saturating_add(more);
+    if *total > MAX_SCENE_FACES {
+        return Err(ImportError::TooLarge(format!(
+            "the scene has more than {MAX_SCENE_FACES} faces (counting each instance of a \
+             mesh), the importer's limit"
+        )));
+    }
+    Ok(())
+}
 
 /// One source face (a triangle after strip/fan decoding, or an OBJ face), world space.
 #[derive(Clone, Debug)]
@@ -64,8 +86,16 @@ struct Tolerance {
 #[derive(Default)]
 struct Report {
     degenerate: usize,
+    duplicates: usize,
+    against_winding: usize,
     non_planar: usize,
     self_intersecting: usize,
+}
+
+/// A source face after step 2: ≥ 3 distinct consecutive vertices and non-zero area.
+struct CleanFace {
+    face: usize,
+    vertices: Vec<DVec3>,
 }
 
 /// A cleaned piece of a face: a triangle or a convex quad.
@@ -76,7 +106,7 @@ struct Piece {
     source_triangle: bool,
 }
 
-/// Turns every instance's faces into polygons (the module's steps 1 to 5).
+/// Turns every instance's faces into polygons (the module's steps 1 to 6).
 pub(crate) fn bake(
     instances: &[Instance],
     stats: &mut ImportStats,
@@ -129,7 +159,7 @@ fn scene_size(instances: &[Instance]) -> f64 {
     }
 }
 
-/// Steps 2 to 5 for one instance.
+/// Steps 2 to 6 for one instance.
 fn bake_instance(
     instance: &Instance,
     tol: Tolerance,
@@ -139,20 +169,29 @@ fn bake_instance(
 ) {
     stats.faces_read += instance.faces.len();
     let mut report = Report::default();
+    let faces = clean_faces(&instance.faces, tol, &mut report);
+    let faces = drop_duplicates(faces, instance.double_sided, &mut report);
+    if !instance.double_sided {
+        report.against_winding = against_winding(&faces);
+    }
     let mut pieces = Vec::new();
-    for face in &instance.faces {
-        let vertices = remove_repeats(&face.vertices, tol.same_point);
-        if vertices.len() < 3 || area(&vertices) <= tol.zero_area {
-            report.degenerate += 1;
-            continue;
-        }
-        split_face(face.face, vertices, tol, stats, &mut report, &mut pieces);
+    for face in faces {
+        split_face(
+            face.face,
+            face.vertices,
+            tol,
+            stats,
+            &mut report,
+            &mut pieces,
+        );
     }
     let (pieces, merged) = merge_pairs(pieces, tol, |a, b| {
         a.source_triangle && b.source_triangle && a.face + 1 == b.face
     });
     stats.quads_merged += merged;
     stats.degenerate_dropped += report.degenerate;
+    stats.duplicates_dropped += report.duplicates;
+    stats.against_winding += report.against_winding;
     for piece in pieces {
         emit(instance, piece, out);
     }
@@ -166,6 +205,20 @@ fn summarise(instance: &Instance, report: &Report, warnings: &mut Vec<String>) {
         warnings.push(format!(
             "{name}: dropped {} degenerate face(s) (repeated vertices or zero area)",
             report.degenerate
+        ));
+    }
+    if report.duplicates > 0 {
+        warnings.push(format!(
+            "{name}: dropped {} duplicate face(s) (the same vertices as an earlier face, \
+             which would count the surface twice)",
+            report.duplicates
+        ));
+    }
+    if report.against_winding > 0 {
+        warnings.push(format!(
+            "{name}: {} face(s) wound opposite to their neighbours, kept as authored \
+             (they face the other way; flip them or make the material doubleSided)",
+            report.against_winding
         ));
     }
     if report.non_planar > 0 {
@@ -182,7 +235,7 @@ fn summarise(instance: &Instance, report: &Report, warnings: &mut Vec<String>) {
     }
 }
 
-/// Step 5: the front polygon, and for double-sided materials the back one right after it.
+/// Step 6: the front polygon, and for double-sided materials the back one right after it.
 fn emit(instance: &Instance, piece: Piece, out: &mut Vec<Polygon>) {
     let normal = newell(&piece.vertices).normalize_or_zero();
     if normal == DVec3::ZERO {
@@ -212,6 +265,143 @@ fn emit(instance: &Instance, piece: Piece, out: &mut Vec<Polygon>) {
     out.extend(back);
 }
 
+/// Step 2: each face without its repeated vertices; faces left with < 3 vertices or no
+/// area are counted and dropped.
+fn clean_faces(faces: &[SourceFace], tol: Tolerance, report: &mut Report) -> Vec<CleanFace> {
+    let mut clean = Vec::with_capacity(faces.len());
+    for face in faces {
+        let vertices = remove_repeats(&face.vertices, tol.same_point);
+        if vertices.len() < 3 || area(&vertices) <= tol.zero_area {
+            report.degenerate += 1;
+        } else {
+            clean.push(CleanFace {
+                face: face.face,
+                vertices,
+            });
+        }
+    }
+    clean
+}
+
+/// A position's exact identity: its bits, with −0 taken as +0. Coincident vertices of a
+/// mesh are copies of one value, so no tolerance is needed to match them.
+type PointKey = [u64; 3];
+
+fn point_key(p: DVec3) -> PointKey {
+    (p + DVec3::ZERO).to_array().map(f64::to_bits)
+}
+
+/// Step 3: keeps the first of faces with the same vertices in the same cyclic order (any
+/// starting vertex); for a double-sided material also in the reverse order.
+fn drop_duplicates(
+    faces: Vec<CleanFace>,
+    double_sided: bool,
+    report: &mut Report,
+) -> Vec<CleanFace> {
+    let mut seen: HashSet<Vec<PointKey>> = HashSet::with_capacity(faces.len());
+    let mut kept = Vec::with_capacity(faces.len());
+    for face in faces {
+        let keys: Vec<PointKey> = face.vertices.iter().map(|&p| point_key(p)).collect();
+        let mut key = cyclic_key(&keys);
+        if double_sided {
+            let reversed: Vec<PointKey> = keys.iter().rev().copied().collect();
+            key = key.min(cyclic_key(&reversed));
+        }
+        if seen.insert(key) {
+            kept.push(face);
+        } else {
+            report.duplicates += 1;
+        }
+    }
+    kept
+}
+
+/// The smallest rotation of a cyclic sequence: equal for every starting point.
+fn cyclic_key(keys: &[PointKey]) -> Vec<PointKey> {
+    let n = keys.len();
+    let rotation = |start: usize| (0..n).map(move |k| keys[(start + k) % n]);
+    let Some(&least) = keys.iter().min() else {
+        return Vec::new();
+    };
+    let start = (0..n)
+        .filter(|&i| keys[i] == least)
+        .min_by(|&a, &b| rotation(a).cmp(rotation(b)))
+        .unwrap_or(0);
+    rotation(start).collect()
+}
+
+/// Step 3: how many faces are wound against their neighbours. Two faces sharing an edge
+/// (an edge used by exactly these two faces, vertices matched exactly) agree when they
+/// traverse it in opposite directions. Within each connected set of faces, the faces
+/// that would have to be flipped to agree with the majority are counted.
+fn against_winding(faces: &[CleanFace]) -> usize {
+    let neighbours = edge_neighbours(faces);
+    let mut parity: Vec<Option<bool>> = vec![None; faces.len()];
+    let mut count = 0;
+    for seed in 0..faces.len() {
+        if parity[seed].is_some() {
+            continue;
+        }
+        parity[seed] = Some(false);
+        let (mut agree, mut flipped) = (0usize, 0usize);
+        let mut stack = vec![seed];
+        while let Some(f) = stack.pop() {
+            let flip = parity[f].unwrap_or(false);
+            if flip {
+                flipped += 1;
+            } else {
+                agree += 1;
+            }
+            for &(g, same_direction) in &neighbours[f] {
+                if parity[g].is_none() {
+                    parity[g] = Some(flip ^ same_direction);
+                    stack.push(g);
+                }
+            }
+        }
+        count += agree.min(flipped);
+    }
+    count
+}
+
+/// For each face, its neighbours across manifold edges (edges used by exactly two faces),
+/// and whether the neighbour traverses the shared edge in the same direction.
+fn edge_neighbours(faces: &[CleanFace]) -> Vec<Vec<(usize, bool)>> {
+    let mut ids: HashMap<PointKey, u32> = HashMap::new();
+    // Undirected edge → its uses (face, traversed from the lower id to the higher).
+    let mut uses: HashMap<(u32, u32), Vec<(usize, bool)>> = HashMap::new();
+    for (f, face) in faces.iter().enumerate() {
+        let face_ids: Vec<u32> = face
+            .vertices
+            .iter()
+            .map(|&p| {
+                let next = ids.len() as u32;
+                *ids.entry(point_key(p)).or_insert(next)
+            })
+            .collect();
+        let n = face_ids.len();
+        for i in 0..n {
+            let (a, b) = (face_ids[i], face_ids[(i + 1) % n]);
+            if a != b {
+                let entry = uses.entry((a.min(b), a.max(b))).or_default();
+                if entry.len() < 3 {
+                    entry.push((f, a < b));
+                }
+            }
+        }
+    }
+    let mut neighbours = vec![Vec::new(); faces.len()];
+    for edge in uses.values() {
+        if let [(f, f_up), (g, g_up)] = edge[..] {
+            if f != g {
+                neighbours[f].push((g, f_up == g_up));
+                neighbours[g].push((f, f_up == g_up));
+            }
+        }
+    }
+    neighbours
+}
+
 /// Step 2: drops each vertex equal (within `eps`) to the one before it, cyclically.
 fn remove_repeats(vertices: &[DVec3], eps: f64) -> Vec<DVec3> {
     let mut kept: Vec<DVec3> = Vec::with_capacity(vertices.len());
@@ -226,7 +416,7 @@ fn remove_repeats(vertices: &[DVec3], eps: f64) -> Vec<DVec3> {
     kept
 }
 
-/// Step 3: one clean face (≥ 3 distinct vertices, non-zero area) into pieces.
+/// Step 4: one clean face (≥ 3 distinct vertices, non-zero area) into pieces.
 fn split_face(
     face: usize,
     vertices: Vec<DVec3>,
@@ -361,7 +551,7 @@ fn is_ear(v: &[DVec3], ring: &[usize], [a, b, c]: [usize; 3], normal: DVec3) -> 
         .all(|p| !inside(p))
 }
 
-/// Step 4: merges consecutive triangle pieces allowed by `may_pair` into convex quads.
+/// Step 5: merges consecutive triangle pieces allowed by `may_pair` into convex quads.
 /// Returns the pieces and how many pairs were merged.
 fn merge_pairs(
     pieces: Vec<Piece>,

@@ -59,6 +59,8 @@ pub fn fixture() -> Fixture {
             degenerate_dropped: 1,
             primitives_skipped: 1,
             ngons_split: 0,
+            duplicates_dropped: 2,
+            against_winding: 3,
         },
         warnings: vec!["mesh \"lines\": primitive 0 skipped (mode LINES)".into()],
     };
