@@ -38,6 +38,20 @@ fn even(n: u32) -> u32 {
     n + n % 2
 }
 
+/// The height etagere gives the shelf of a `height`-texel region: it rounds shelf heights
+/// (in its units, 2-texel blocks here) up to multiples of 8, 16, 32 or 64 blocks by size.
+/// Charts are stretched to fill that height, so the rounding buys texels instead of waste.
+fn shelf_height(height: u32) -> u32 {
+    let blocks = even(height) / 2;
+    let alignment = match blocks {
+        0..=31 => 8,
+        32..=127 => 16,
+        128..=511 => 32,
+        _ => 64,
+    };
+    2 * blocks.div_ceil(alignment) * alignment
+}
+
 /// The regions for `polygons` at `texels_per_unit`; `None` when a chart would not fit in u32.
 pub(crate) fn layout(polygons: &[Polygon], texels_per_unit: f64) -> Option<Vec<Region>> {
     let mut regions = Vec::new();
@@ -64,7 +78,8 @@ pub(crate) fn layout(polygons: &[Polygon], texels_per_unit: f64) -> Option<Vec<R
         if let Some(second) = triangles.get(k + 1) {
             let pair = pair_region(first, second);
             let alone = |t: &Triangle| {
-                u64::from(even(t.base + 2 * PADDING)) * u64::from(even(t.height + 2 * PADDING))
+                let r = lone_region(t);
+                u64::from(r.width) * u64::from(r.height)
             };
             let pair_area = u64::from(pair.width) * u64::from(pair.height);
             if pair_area < alone(first) + alone(second) {
@@ -82,8 +97,14 @@ pub(crate) fn layout(polygons: &[Polygon], texels_per_unit: f64) -> Option<Vec<R
 /// A quad as a w × h rectangle, w and h its longer opposite edges (the mesher's element
 /// directions), turned so the longer side runs along x.
 fn quad_region(index: usize, v: &[DVec3], texels_per_unit: f64) -> Option<Region> {
-    let w = texels(v[0].distance(v[1]).max(v[3].distance(v[2])) * texels_per_unit)?;
-    let h = texels(v[0].distance(v[3]).max(v[1].distance(v[2])) * texels_per_unit)?;
+    let mut w = texels(v[0].distance(v[1]).max(v[3].distance(v[2])) * texels_per_unit)?;
+    let mut h = texels(v[0].distance(v[3]).max(v[1].distance(v[2])) * texels_per_unit)?;
+    // The shorter side runs along y: stretch it to fill its shelf.
+    if w >= h {
+        h = shelf_height(h + 2 * PADDING) - 2 * PADDING;
+    } else {
+        w = shelf_height(w + 2 * PADDING) - 2 * PADDING;
+    }
     let p = f64::from(PADDING);
     let (fw, fh) = (f64::from(w), f64::from(h));
     let uv = if w >= h {
@@ -153,10 +174,11 @@ impl Triangle {
 
 fn lone_region(t: &Triangle) -> Region {
     let p = f64::from(PADDING);
-    let (b, h) = (f64::from(t.base), f64::from(t.height));
+    let height = shelf_height(t.height + 2 * PADDING);
+    let (b, h) = (f64::from(t.base), f64::from(height - 2 * PADDING));
     Region {
         width: even(t.base + 2 * PADDING),
-        height: even(t.height + 2 * PADDING),
+        height,
         charts: vec![(
             t.polygon,
             t.uv(DVec2::new(p, p), DVec2::new(p + b, p), DVec2::new(p, p + h)),
@@ -167,7 +189,9 @@ fn lone_region(t: &Triangle) -> Region {
 /// Two triangles in one rectangle: the first's right angle at the top-left, the second's at
 /// the bottom-right, their hypotenuses parallel and [`PAIR_GAP`] texels apart (Chebyshev).
 fn pair_region(first: &Triangle, second: &Triangle) -> Region {
-    let (w, h) = (first.base.max(second.base), first.height.max(second.height));
+    let w = first.base.max(second.base);
+    let height = shelf_height(first.height.max(second.height) + PAIR_GAP + 2 * PADDING);
+    let h = height - PAIR_GAP - 2 * PADDING;
     let (p, g) = (f64::from(PADDING), f64::from(PAIR_GAP));
     let (fw, fh) = (f64::from(w), f64::from(h));
     let one = first.uv(
@@ -183,7 +207,7 @@ fn pair_region(first: &Triangle, second: &Triangle) -> Region {
     );
     Region {
         width: even(w + PAIR_GAP + 2 * PADDING),
-        height: even(h + PAIR_GAP + 2 * PADDING),
+        height,
         charts: vec![(first.polygon, one), (second.polygon, two)],
     }
 }

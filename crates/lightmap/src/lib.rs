@@ -180,19 +180,9 @@ pub fn build(
             "irradiance of element {i} is not finite"
         )));
     }
-    if polygons.is_empty() {
-        return Err(LightmapError::InvalidData("no polygons".into()));
-    }
-    let fields = polygons
-        .iter()
-        .zip(&mesh.patches)
-        .enumerate()
-        .map(|(k, (p, patch))| Field::new(p, patch, mesh, k))
-        .collect::<Result<Vec<_>, _>>()?;
-    let smoothed = mesh.smooth(element_irradiance);
-    let (lo, hi) = importer::bounds(polygons);
-    let tolerance = 1e-6 * (hi - lo).length();
-    let (vertex_values, welded_vertices) = field::weld(polygons, &fields, &smoothed, tolerance);
+    let fields = fields(polygons, mesh)?;
+    let (vertex_values, welded_vertices) =
+        smooth_and_weld(polygons, mesh, &fields, element_irradiance);
 
     let (texel_size, regions, packing, reductions) = fit(polygons, options)?;
     let width = packing.width as usize;
@@ -267,6 +257,56 @@ pub fn build(
         stats,
         fields,
     })
+}
+
+fn fields(polygons: &[Polygon], mesh: &ElementMesh) -> Result<Vec<Field>, LightmapError> {
+    if polygons.is_empty() || mesh.patches.len() != polygons.len() {
+        return Err(LightmapError::InvalidData(format!(
+            "{} polygons, {} patches",
+            polygons.len(),
+            mesh.patches.len()
+        )));
+    }
+    polygons
+        .iter()
+        .zip(&mesh.patches)
+        .enumerate()
+        .map(|(k, (p, patch))| Field::new(p, patch, mesh, k))
+        .collect()
+}
+
+fn smooth_and_weld(
+    polygons: &[Polygon],
+    mesh: &ElementMesh,
+    fields: &[Field],
+    element_values: &[[f64; 3]],
+) -> (Vec<[f64; 3]>, usize) {
+    let smoothed = mesh.smooth(element_values);
+    let (lo, hi) = importer::bounds(polygons);
+    let tolerance = 1e-6 * (hi - lo).length();
+    field::weld(polygons, fields, &smoothed, tolerance)
+}
+
+/// The vertex values a lightmap is reconstructed from, for any per-element quantity (H, or b
+/// for a vertex bake that should match the lightmap): `mesh.smooth(element_values)`, then
+/// every grid vertex on an edge shared with a coplanar polygon of the same material (same
+/// facing, within 1e-6 × the scene's diagonal) gets the mean of the fields of all such
+/// polygons there. Linear in the values, so for b = e + ρH on one material the welded b is
+/// e + ρ × the welded H.
+pub fn welded_vertex_values(
+    polygons: &[Polygon],
+    mesh: &ElementMesh,
+    element_values: &[[f64; 3]],
+) -> Result<Vec<[f64; 3]>, LightmapError> {
+    if element_values.len() != mesh.elements.len() {
+        return Err(LightmapError::InvalidData(format!(
+            "{} values for {} elements",
+            element_values.len(),
+            mesh.elements.len()
+        )));
+    }
+    let fields = fields(polygons, mesh)?;
+    Ok(smooth_and_weld(polygons, mesh, &fields, element_values).0)
 }
 
 type Fitted = (f64, Vec<chart::Region>, pack::Packing, u32);
