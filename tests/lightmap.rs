@@ -996,3 +996,81 @@ fn lightmap_outputs_pass_the_khronos_validator() {
         .count();
     assert_eq!(clean, files.len(), "one clean summary per file:\n{stdout}");
 }
+
+// ---- pictures for the README ----
+
+/// Writes `docs/images/cube-atlas.png`, `docs/images/cornell-like-atlas.png` (the PNG
+/// lightmaps as baked) and `docs/images/cornell-like-render.png` (the room seen through its
+/// open front, each pixel ρ × the bilinearly sampled lightmap + e: what a viewer shows with
+/// the lightmap set up as the README says). Run with
+/// `cargo test --release --test lightmap -- --ignored readme_pictures`.
+#[test]
+#[ignore]
+fn readme_pictures() {
+    let images = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/images");
+    std::fs::create_dir_all(&images).expect("create docs/images");
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let room = cornell_like_obj(dir.path(), false);
+    for (input, name) in [
+        (fixture("cube.gltf"), "cube-atlas.png"),
+        (room.clone(), "cornell-like-atlas.png"),
+    ] {
+        let lightmap = build(&solve(&input), None);
+        let png = lightmap::encode_png(&lightmap).expect("encode");
+        std::fs::write(images.join(name), png.bytes).expect("write the atlas");
+    }
+    let solved = solve(&room);
+    let lightmap = build(&solved, None);
+    let (width, height) = (360u32, 360u32);
+    let eye = DVec3::new(2.75, 2.75, 12.5);
+    let focal = 1.0 / (20f64.to_radians()).tan();
+    let polygons = &solved.scene.polygons;
+    let mut pixels = Vec::with_capacity((width * height * 3) as usize);
+    for j in 0..height {
+        for i in 0..width {
+            let x = (2.0 * (i as f64 + 0.5) / width as f64) - 1.0;
+            let y = 1.0 - (2.0 * (j as f64 + 0.5) / height as f64);
+            let d = DVec3::new(x, y, -focal).normalize();
+            let mut hit: Option<(f64, usize, DVec3)> = None;
+            for (p, polygon) in polygons.iter().enumerate() {
+                let n = polygon.normal;
+                let facing = d.dot(n);
+                if facing >= 0.0 {
+                    continue;
+                }
+                let t = (polygon.vertices[0] - eye).dot(n) / facing;
+                let point = eye + d * t;
+                let v = &polygon.vertices;
+                let inside = (0..v.len())
+                    .all(|k| (v[(k + 1) % v.len()] - v[k]).cross(point - v[k]).dot(n) >= 0.0);
+                if t > 0.0 && inside && hit.is_none_or(|(best, _, _)| t < best) {
+                    hit = Some((t, p, point));
+                }
+            }
+            let colour = match hit {
+                Some((_, p, point)) => {
+                    let uv: Vec<[f64; 2]> = (0..polygons[p].vertices.len())
+                        .map(|k| lightmap.texcoord(p, k).map(f64::from))
+                        .collect();
+                    let h = lightmap.sample(texcoord_at(&polygons[p], &uv, point));
+                    let m = &solved.scene.materials[polygons[p].material];
+                    std::array::from_fn(|c| m.rho[c] * h[c] + m.emission[c])
+                }
+                None => [0.0; 3],
+            };
+            // Exposure 0.6, clamped, sRGB-encoded for the screen.
+            for c in colour {
+                let v = lightmap::linear_to_srgb((0.6 * c).clamp(0.0, 1.0));
+                pixels.push((v * 255.0).round() as u8);
+            }
+        }
+    }
+    image::save_buffer(
+        images.join("cornell-like-render.png"),
+        &pixels,
+        width,
+        height,
+        image::ColorType::Rgb8,
+    )
+    .expect("write the render");
+}
