@@ -397,3 +397,156 @@ pub fn sample_bilinear(texels: &[[f32; 3]], width: u32, height: u32, uv: [f64; 2
         (1.0 - fy) * ((1.0 - fx) * a[k] + fx * b[k]) + fy * ((1.0 - fx) * c[k] + fx * d[k])
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use importer::{Origin, Side};
+
+    fn polygon(vertices: Vec<DVec3>, material: usize) -> Polygon {
+        let normal = (vertices[1] - vertices[0])
+            .cross(vertices[2] - vertices[0])
+            .normalize();
+        Polygon {
+            vertices,
+            normal,
+            material,
+            origin: Origin {
+                node: 0,
+                mesh: 0,
+                primitive: 0,
+                face: 0,
+                side: Side::Front,
+            },
+        }
+    }
+
+    /// A linear function of position, per band.
+    fn linear(p: DVec3) -> [f64; 3] {
+        [
+            1.0 + 0.3 * p.x + 0.2 * p.y,
+            2.0 - 0.1 * p.x,
+            0.5 + 0.05 * p.y,
+        ]
+    }
+
+    #[test]
+    fn fields_interpolate_linear_vertex_values_exactly() {
+        let polygons = vec![
+            // A parallelogram and a triangle.
+            polygon(
+                vec![
+                    DVec3::new(0.0, 0.0, 0.0),
+                    DVec3::new(2.0, 0.0, 0.0),
+                    DVec3::new(2.5, 1.0, 0.0),
+                    DVec3::new(0.5, 1.0, 0.0),
+                ],
+                0,
+            ),
+            polygon(
+                vec![
+                    DVec3::new(0.0, 0.0, 1.0),
+                    DVec3::new(3.0, 0.0, 1.0),
+                    DVec3::new(1.0, 2.0, 1.0),
+                ],
+                0,
+            ),
+        ];
+        let mesh = mesher::mesh(&polygons, mesher::Subdivision::Count(3)).expect("mesh");
+        let values: Vec<[f64; 3]> = mesh.vertices.iter().map(|p| linear(*p)).collect();
+        for (k, p) in polygons.iter().enumerate() {
+            let field = Field::new(p, &mesh.patches[k], &mesh, k).expect("grid");
+            for (a, b) in [(0.1, 0.2), (0.5, 0.3), (0.33, 0.33), (0.9, 0.05)] {
+                let v = &p.vertices;
+                let point = v[0] + (v[1] - v[0]) * a + (v[v.len() - 1] - v[0]) * b;
+                let got = field.value_at(field.to_plane(point), &values);
+                let want = linear(point);
+                for c in 0..3 {
+                    assert!((got[c] - want[c]).abs() < 1e-12, "{k} {a} {b}: {got:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn coplanar_neighbours_of_one_material_are_welded_along_their_edge() {
+        let square = |x: f64, material: usize| {
+            polygon(
+                vec![
+                    DVec3::new(x, 0.0, 0.0),
+                    DVec3::new(x + 1.0, 0.0, 0.0),
+                    DVec3::new(x + 1.0, 1.0, 0.0),
+                    DVec3::new(x, 1.0, 0.0),
+                ],
+                material,
+            )
+        };
+        for (material, welded) in [(0, true), (1, false)] {
+            let polygons = vec![square(0.0, 0), square(1.0, material)];
+            let mesh = mesher::mesh(&polygons, mesher::Subdivision::Count(2)).expect("mesh");
+            // Element values differ per polygon: the one-sided smoothing disagrees at x = 1.
+            let values: Vec<[f64; 3]> = mesh
+                .elements
+                .iter()
+                .map(|e| [1.0 + e.polygon as f64 + e.centroid.y, 1.0, 1.0])
+                .collect();
+            let vertex = welded_vertex_values(&polygons, &mesh, &values).expect("weld");
+            let on_edge = |k: usize| (mesh.vertices[k].x - 1.0).abs() < 1e-12;
+            let left: Vec<usize> = (0..9).filter(|&k| on_edge(k)).collect();
+            let right: Vec<usize> = (9..18).filter(|&k| on_edge(k)).collect();
+            assert_eq!((left.len(), right.len()), (3, 3));
+            for (&a, &b) in left.iter().zip(&right) {
+                assert_eq!(mesh.vertices[a], mesh.vertices[b]);
+                assert_eq!(vertex[a] == vertex[b], welded, "material {material}");
+            }
+            let smoothed = mesh.smooth(&values);
+            for k in (0..18).filter(|&k| !on_edge(k)) {
+                assert_eq!(vertex[k], smoothed[k], "only shared-edge vertices move");
+            }
+        }
+    }
+
+    #[test]
+    fn similar_triangles_share_a_rectangle_with_a_gap() {
+        let polygons = vec![
+            polygon(
+                vec![
+                    DVec3::new(0.0, 0.0, 0.0),
+                    DVec3::new(1.0, 0.0, 0.0),
+                    DVec3::new(0.3, 0.8, 0.0),
+                ],
+                0,
+            ),
+            polygon(
+                vec![
+                    DVec3::new(0.0, 0.0, 1.0),
+                    DVec3::new(1.0, 0.0, 1.0),
+                    DVec3::new(0.6, 0.7, 1.0),
+                ],
+                0,
+            ),
+        ];
+        let mesh = mesher::mesh(&polygons, mesher::Subdivision::Count(2)).expect("mesh");
+        let values = vec![[1.0; 3]; mesh.elements.len()];
+        let options = Options {
+            texel_size: 0.02,
+            max_size: 1024,
+        };
+        let lightmap = build(&polygons, &mesh, &values, &options).expect("build");
+        assert_eq!(lightmap.charts[0].region, lightmap.charts[1].region);
+        // The two footprints never touch and every written texel is 1.
+        for (k, t) in lightmap.coverage.iter().enumerate() {
+            if !matches!(t, Texel::Unused) {
+                assert_eq!(lightmap.texels[k], [1.0; 3]);
+            }
+        }
+        let owner = |x: usize, y: usize| lightmap.coverage[y * lightmap.width as usize + x];
+        for y in 0..lightmap.height as usize {
+            for x in 1..lightmap.width as usize {
+                if let (Texel::Chart(a), Texel::Chart(b)) = (owner(x - 1, y), owner(x, y)) {
+                    assert_eq!(a, b, "footprints of the pair meet at ({x}, {y})");
+                }
+            }
+        }
+    }
+}
