@@ -97,6 +97,22 @@ pub struct Cli {
     #[arg(long)]
     pub ff_fixed_order: bool,
 
+    /// What to write. `vertex`: OUT holds the element mesh with the radiosity in COLOR_0
+    /// (unlit). `lightmap`: OUT holds the input's polygons (not subdivided) with lit materials,
+    /// TEXCOORD_1 and a MOZ_lightmap PNG (OUT's stem + .lightmap.png), plus OUT's stem +
+    /// .lightmap.exr (linear float irradiance). `both`: OUT holds the vertex bake and OUT's stem
+    /// + .lightmap.gltf (or .glb) the lightmap bake, the images beside it.
+    #[arg(long, value_enum, default_value_t = Target::Both)]
+    pub target: Target,
+    /// Lightmap texel size in world units (default: the scene's bounding-box diagonal / 256).
+    /// Made coarser automatically when the atlas would be larger than --lightmap-max.
+    #[arg(long, value_name = "L", allow_negative_numbers = true)]
+    pub lightmap_texel: Option<f64>,
+    /// Largest lightmap atlas side, in texels.
+    #[arg(long, value_name = "N", default_value_t = lightmap::DEFAULT_MAX_SIZE,
+          value_parser = clap::value_parser!(u32).range(16..=16384))]
+    pub lightmap_max: u32,
+
     /// Write a JSON bake report (options, counts, timings, residuals, every element's
     /// centroid, normal, area, ρ, e and b in world space).
     #[arg(long, value_name = "FILE.json")]
@@ -122,6 +138,13 @@ fn parse_tolerance(text: &str) -> Result<f64, String> {
         Ok(t) => Err(format!("must be a number in (0, 1), got {t}")),
         Err(e) => Err(e.to_string()),
     }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Target {
+    Vertex,
+    Lightmap,
+    Both,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

@@ -1,6 +1,6 @@
 //! Wires the stages together, times them, reports progress, and maps failures to exit codes.
 
-use crate::{Cli, Shading, SolverKind};
+use crate::{Cli, Shading, SolverKind, Target};
 use anyhow::{anyhow, Context};
 use exporter::report::{self, EnergyInfo, Report, SolverInfo, SolverMethod};
 use form_factor::{ContourOptions, FormFactors};
@@ -41,6 +41,13 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             "--exposure must be a finite number ≥ 0, got {}",
             cli.exposure
         )));
+    }
+    if let Some(l) = cli.lightmap_texel {
+        if !(l.is_finite() && l > 0.0) {
+            return Err(bad_input(anyhow!(
+                "--lightmap-texel must be a positive number, got {l}"
+            )));
+        }
     }
     // Fail before the bake, not after it: a missing report directory would otherwise fail
     // only once OUT has been written.
@@ -128,7 +135,32 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     .map_err(bad_input)?;
     stage("solve", &mut lap);
 
-    // 5. Export.
+    // 5. Lightmap: irradiance H = F b per element (ρ = 0 elements receive light too).
+    let lightmap = if cli.target == Target::Vertex {
+        None
+    } else {
+        let mut h = vec![[0.0; 3]; n];
+        solver::Operator::apply_bands(&f, &solution.b, &mut h);
+        let options = lightmap::Options {
+            texel_size: cli
+                .lightmap_texel
+                .unwrap_or_else(|| lightmap::default_texel_size(&scene.polygons)),
+            max_size: cli.lightmap_max,
+        };
+        let built = lightmap::build(&scene.polygons, &mesh, &h, &options)
+            .with_context(|| format!("{}: cannot build the lightmap", input.display()))
+            .map_err(internal)?;
+        if built.stats.reductions > 0 {
+            warnings.push(format!(
+                "lightmap texel size raised from {:.6} to {:.6} to fit a {} atlas",
+                built.requested_texel_size, built.texel_size, cli.lightmap_max
+            ));
+        }
+        stage("lightmap", &mut lap);
+        Some(built)
+    };
+
+    // 6. Export.
     let shading = match cli.shading {
         Shading::Smooth => exporter::Shading::Smooth,
         Shading::Flat => exporter::Shading::Flat,
@@ -140,9 +172,26 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         shading,
         exposure: cli.exposure,
     };
-    exporter::write_gltf(&cli.output, &bake)
+    if cli.target != Target::Lightmap {
+        exporter::write_gltf(&cli.output, &bake)
+            .with_context(|| format!("cannot write {}", cli.output.display()))
+            .map_err(internal)?;
+    }
+    if let Some(built) = &lightmap {
+        let paths = match cli.target {
+            Target::Both => exporter::LightmapPaths::beside(&cli.output),
+            _ => exporter::LightmapPaths::alone(&cli.output),
+        }
         .with_context(|| format!("cannot write {}", cli.output.display()))
         .map_err(internal)?;
+        let lightmap_bake = exporter::LightmapBake {
+            scene: &scene,
+            lightmap: built,
+        };
+        exporter::write_lightmap_gltf(&paths, &lightmap_bake)
+            .with_context(|| format!("cannot write {}", paths.gltf.display()))
+            .map_err(internal)?;
+    }
     stage("export", &mut lap);
 
     if !cli.quiet {
@@ -168,7 +217,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         let mut report = Report::new(input, &scene, &mesh, &solution.b, info)
             .with_context(|| format!("cannot build the report {}", path.display()))
             .map_err(internal)?;
-        report.options = options_json(cli, subdivision, contour);
+        report.options = options_json(cli, subdivision, contour, &scene);
         report.counts.pairs_evaluated = matrix.stats.pairs_integrated;
         report.energy = Some(EnergyInfo {
             emitted: energy.emitted,
@@ -186,6 +235,15 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     }
 
     if !cli.quiet {
+        if let Some(built) = &lightmap {
+            eprintln!(
+                "bake: lightmap {}×{} texels, texel {:.6}, occupancy {:.1}%",
+                built.width,
+                built.height,
+                built.texel_size,
+                100.0 * built.stats.occupancy
+            );
+        }
         let r = solution.residual;
         // The hardest band's condition number and, for GMRES, its iteration count.
         let mut hardness = String::new();
@@ -251,7 +309,12 @@ fn progress_bar(quiet: bool, len: u64, what: &str) -> ProgressBar {
 }
 
 /// The options as resolved for this bake (defaults filled in), for the report.
-fn options_json(cli: &Cli, subdivision: Subdivision, contour: ContourOptions) -> serde_json::Value {
+fn options_json(
+    cli: &Cli,
+    subdivision: Subdivision,
+    contour: ContourOptions,
+    scene: &importer::Scene,
+) -> serde_json::Value {
     let subdivision = match subdivision {
         Subdivision::Count(n) => serde_json::json!({ "subdiv": n }),
         Subdivision::MaxSize(l) => serde_json::json!({ "max_element_size": l }),
@@ -270,5 +333,14 @@ fn options_json(cli: &Cli, subdivision: Subdivision, contour: ContourOptions) ->
         "ff_auto_order": contour.auto_order,
         "ff_near_ratio": contour.near_ratio,
         "output": cli.output.display().to_string(),
+        "target": match cli.target {
+            Target::Vertex => "vertex",
+            Target::Lightmap => "lightmap",
+            Target::Both => "both",
+        },
+        "lightmap_texel": cli
+            .lightmap_texel
+            .unwrap_or_else(|| lightmap::default_texel_size(&scene.polygons)),
+        "lightmap_max": cli.lightmap_max,
     })
 }

@@ -551,8 +551,22 @@ fn bake_for_determinism(
 #[test]
 fn bakes_are_deterministic_across_runs_and_thread_counts() {
     for (output, names) in [
-        ("baked.glb", vec!["baked.glb"]),
-        ("baked.gltf", vec!["baked.bin", "baked.gltf"]),
+        // The default --target both: the vertex bake and the lightmap bake with its images.
+        (
+            "baked.glb",
+            vec!["baked.glb", "baked.lightmap.exr", "baked.lightmap.glb"],
+        ),
+        (
+            "baked.gltf",
+            vec![
+                "baked.bin",
+                "baked.gltf",
+                "baked.lightmap.bin",
+                "baked.lightmap.exr",
+                "baked.lightmap.gltf",
+                "baked.lightmap.png",
+            ],
+        ),
     ] {
         let runs: Vec<_> = [None, None, Some("1"), Some("2")]
             .iter()

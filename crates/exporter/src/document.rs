@@ -37,7 +37,7 @@ pub(crate) fn build(
 }
 
 /// Every index in the layout must point at something, so the document is consistent.
-fn check_layout(layout: &Layout) -> Result<(), ExportError> {
+pub(crate) fn check_layout(layout: &Layout) -> Result<(), ExportError> {
     let node_count = layout.nodes.len();
     if u32::try_from(node_count).is_err() || u32::try_from(layout.scenes.len()).is_err() {
         return Err(invalid("too many nodes or scenes for glTF".into()));
@@ -66,15 +66,15 @@ fn invalid(message: String) -> ExportError {
 }
 
 #[derive(Default)]
-struct DocumentWriter {
-    root: json::Root,
-    bin: Vec<u8>,
+pub(crate) struct DocumentWriter {
+    pub(crate) root: json::Root,
+    pub(crate) bin: Vec<u8>,
     material: Option<Index<json::Material>>,
 }
 
 impl DocumentWriter {
     /// Nodes (same order), their transforms and children, and the scenes.
-    fn add_layout(&mut self, layout: &Layout) {
+    pub(crate) fn add_layout(&mut self, layout: &Layout) {
         for node in &layout.nodes {
             let mut output = json::Node {
                 name: node.name.clone(),
@@ -176,7 +176,11 @@ impl DocumentWriter {
     }
 
     /// A float VEC3 attribute; `with_bounds` adds the exact min/max (required for POSITION).
-    fn add_vec3(&mut self, values: &[[f32; 3]], with_bounds: bool) -> Index<json::Accessor> {
+    pub(crate) fn add_vec3(
+        &mut self,
+        values: &[[f32; 3]],
+        with_bounds: bool,
+    ) -> Index<json::Accessor> {
         let bytes: Vec<u8> = values
             .iter()
             .flatten()
@@ -200,7 +204,11 @@ impl DocumentWriter {
     }
 
     /// Triangle indices: u16 when every index fits below the u16 primitive-restart value.
-    fn add_indices(&mut self, indices: &[u32], vertex_count: usize) -> Index<json::Accessor> {
+    pub(crate) fn add_indices(
+        &mut self,
+        indices: &[u32],
+        vertex_count: usize,
+    ) -> Index<json::Accessor> {
         let (bytes, component_type) = if vertex_count <= usize::from(u16::MAX) {
             let bytes: Vec<u8> = indices
                 .iter()
@@ -223,7 +231,7 @@ impl DocumentWriter {
     }
 
     /// Appends `bytes` at a 4-byte aligned offset as a new buffer view of buffer 0.
-    fn add_view(&mut self, bytes: &[u8], target: Target) -> Index<json::buffer::View> {
+    pub(crate) fn add_view(&mut self, bytes: &[u8], target: Target) -> Index<json::buffer::View> {
         pad_to_four(&mut self.bin);
         let offset = self.bin.len();
         self.bin.extend_from_slice(bytes);
@@ -239,7 +247,7 @@ impl DocumentWriter {
         })
     }
 
-    fn finish(mut self, bin_uri: Option<String>) -> (json::Root, Vec<u8>) {
+    pub(crate) fn finish(mut self, bin_uri: Option<String>) -> (json::Root, Vec<u8>) {
         pad_to_four(&mut self.bin);
         if !self.bin.is_empty() {
             self.root.push(json::Buffer {
@@ -271,7 +279,7 @@ fn unlit_material() -> json::Material {
     }
 }
 
-fn accessor(
+pub(crate) fn accessor(
     view: Index<json::buffer::View>,
     count: usize,
     component_type: ComponentType,
@@ -356,7 +364,7 @@ fn index<T>(i: usize) -> Index<T> {
     Index::new(i as u32)
 }
 
-fn pad_to_four(bytes: &mut Vec<u8>) {
+pub(crate) fn pad_to_four(bytes: &mut Vec<u8>) {
     let padding = (4 - bytes.len() % 4) % 4;
     bytes.resize(bytes.len() + padding, 0);
 }

@@ -100,7 +100,7 @@ fn temporary_path_for(path: &Path) -> PathBuf {
 }
 
 /// Writes the temporary for `path` and returns its path; removes it again on error.
-fn write_temporary(path: &Path, bytes: &[u8]) -> Result<PathBuf, ExportError> {
+pub(crate) fn write_temporary(path: &Path, bytes: &[u8]) -> Result<PathBuf, ExportError> {
     let temporary = temporary_path_for(path);
     let result = fs::File::create(&temporary).and_then(|mut file| {
         file.write_all(bytes)?;
@@ -118,7 +118,7 @@ fn write_temporary(path: &Path, bytes: &[u8]) -> Result<PathBuf, ExportError> {
     }
 }
 
-fn rename_into_place(temporary: &Path, path: &Path) -> Result<(), ExportError> {
+pub(crate) fn rename_into_place(temporary: &Path, path: &Path) -> Result<(), ExportError> {
     fs::rename(temporary, path).map_err(|source| {
         remove_quietly(temporary);
         ExportError::Io {
@@ -129,7 +129,7 @@ fn rename_into_place(temporary: &Path, path: &Path) -> Result<(), ExportError> {
 }
 
 /// Best-effort clean-up of a temporary; the error being reported matters more.
-fn remove_quietly(path: &Path) {
+pub(crate) fn remove_quietly(path: &Path) {
     let _ = fs::remove_file(path);
 }
 

@@ -14,7 +14,13 @@
 mod document;
 mod files;
 mod geometry;
+mod lightmap_gltf;
 pub mod report;
+
+pub use lightmap_gltf::{
+    write_lightmap_gltf, LightmapBake, LightmapPaths, LightmapWritten, LIGHTMAP_EXTENSION,
+    LIGHTMAP_EXTRAS_KEY, LIGHTMAP_UNITS,
+};
 
 use std::path::{Path, PathBuf};
 

@@ -1,0 +1,492 @@
+//! Writes the lightmap bake: the input's polygons (not subdivided) in each node's local space
+//! with lit materials rebuilt from the input's, `TEXCOORD_1` into one lightmap atlas wired
+//! with `MOZ_lightmap` (what three.js-based viewers such as Hubs read), the atlas as an 8-bit
+//! sRGB PNG and as a linear float EXR. Every file is written atomically; the glTF last.
+//!
+//! Layout of each output primitive: the polygons of one input primitive instance, in the
+//! importer's polygon order, each with its own 3 or 4 vertices (in the polygon's vertex
+//! order) and the triangles (v0 v1 v2), (v0 v2 v3) — the triangles the lightmap's texels were
+//! reconstructed over.
+
+use crate::document::{accessor, check_layout, pad_to_four, DocumentWriter};
+use crate::files::{self, OutputFormat};
+use crate::{encode_glb, encode_json, ExportError};
+use glam::{DMat3, DMat4, DVec3};
+use gltf::json;
+use gltf::json::accessor::{ComponentType, Type};
+use gltf::json::buffer::Target;
+use gltf::json::mesh::{Mode, Semantic};
+use gltf::json::validation::{Checked, USize64};
+use gltf::json::Index;
+use importer::{Material, Scene};
+use lightmap::Lightmap;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The material extension that carries the lightmap.
+pub const LIGHTMAP_EXTENSION: &str = "MOZ_lightmap";
+const EMISSIVE_STRENGTH_EXTENSION: &str = "KHR_materials_emissive_strength";
+/// The key of the root `extras` object that describes the lightmap.
+pub const LIGHTMAP_EXTRAS_KEY: &str = "bake_lightmap";
+/// The units sentence written into the glTF and the README.
+pub const LIGHTMAP_UNITS: &str = "irradiance H (light arriving at the surface) in the bake's \
+intensity units, those of emission e and radiosity b: b = e + rho * H";
+
+/// Where the files of a lightmap bake go.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LightmapPaths {
+    /// The glTF (`.gltf` with its `.bin` beside it, or `.glb` with the PNG inside).
+    pub gltf: PathBuf,
+    /// The 8-bit PNG (only written for `.gltf`; a `.glb` embeds it).
+    pub png: PathBuf,
+    /// The linear float EXR.
+    pub exr: PathBuf,
+}
+
+impl LightmapPaths {
+    /// `--target lightmap`: the glTF is `output`; the images are `<stem>.lightmap.png` and
+    /// `<stem>.lightmap.exr` beside it.
+    pub fn alone(output: &Path) -> Result<LightmapPaths, ExportError> {
+        OutputFormat::from_path(output)?;
+        Ok(LightmapPaths {
+            gltf: output.to_path_buf(),
+            png: sibling(output, "lightmap.png")?,
+            exr: sibling(output, "lightmap.exr")?,
+        })
+    }
+
+    /// `--target both`: `output` holds the vertex bake; the lightmap glTF is
+    /// `<stem>.lightmap.gltf` (or `.glb`, as `output`) and the images are named as in
+    /// [`LightmapPaths::alone`].
+    pub fn beside(output: &Path) -> Result<LightmapPaths, ExportError> {
+        let format = OutputFormat::from_path(output)?;
+        let extension = match format {
+            OutputFormat::Gltf => "lightmap.gltf",
+            OutputFormat::Glb => "lightmap.glb",
+        };
+        Ok(LightmapPaths {
+            gltf: sibling(output, extension)?,
+            ..LightmapPaths::alone(output)?
+        })
+    }
+}
+
+/// `<dir>/<stem>.<suffix>` for `<dir>/<stem>.<ext>`.
+fn sibling(path: &Path, suffix: &str) -> Result<PathBuf, ExportError> {
+    let stem = path
+        .file_stem()
+        .ok_or_else(|| ExportError::UnsupportedExtension(path.to_path_buf()))?;
+    let mut name = stem.to_os_string();
+    name.push(".");
+    name.push(suffix);
+    Ok(path.with_file_name(name))
+}
+
+/// Everything [`write_lightmap_gltf`] needs.
+#[derive(Clone, Copy, Debug)]
+pub struct LightmapBake<'a> {
+    pub scene: &'a Scene,
+    pub lightmap: &'a Lightmap,
+}
+
+/// What was written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightmapWritten {
+    /// `MOZ_lightmap.intensity`: `H = srgb_to_linear(png / 255) × png_scale`.
+    pub png_scale: f64,
+    /// Every file written, in the order they were renamed into place.
+    pub files: Vec<PathBuf>,
+}
+
+/// Writes the lightmap bake to `paths`.
+pub fn write_lightmap_gltf(
+    paths: &LightmapPaths,
+    bake: &LightmapBake,
+) -> Result<LightmapWritten, ExportError> {
+    let format = OutputFormat::from_path(&paths.gltf)?;
+    let scene = bake.scene;
+    let lightmap = bake.lightmap;
+    if lightmap.charts.len() != scene.polygons.len() {
+        return Err(ExportError::InvalidData(format!(
+            "{} lightmap charts for {} polygons",
+            lightmap.charts.len(),
+            scene.polygons.len()
+        )));
+    }
+    check_layout(&scene.layout)?;
+    let encode = |e: lightmap::LightmapError| ExportError::Encode {
+        what: "lightmap",
+        message: e.to_string(),
+    };
+    let exr = lightmap::encode_exr(lightmap).map_err(encode)?;
+    let png = lightmap::encode_png(lightmap).map_err(encode)?;
+
+    let mut writer = DocumentWriter::default();
+    writer.root.asset.generator = Some(format!("bake {}", env!("CARGO_PKG_VERSION")));
+    writer.add_layout(&scene.layout);
+    let image = match format {
+        OutputFormat::Gltf => json::Image {
+            buffer_view: None,
+            mime_type: Some(json::image::MimeType("image/png".into())),
+            name: Some("lightmap".into()),
+            uri: Some(files::uri_for_file_name(&paths.png)),
+            extensions: None,
+            extras: Default::default(),
+        },
+        OutputFormat::Glb => {
+            pad_to_four(&mut writer.bin);
+            let offset = writer.bin.len();
+            writer.bin.extend_from_slice(&png.bytes);
+            let view = writer.root.push(json::buffer::View {
+                buffer: Index::new(0),
+                byte_length: USize64::from(png.bytes.len()),
+                byte_offset: Some(USize64::from(offset)),
+                byte_stride: None,
+                name: None,
+                target: None,
+                extensions: None,
+                extras: Default::default(),
+            });
+            json::Image {
+                buffer_view: Some(view),
+                mime_type: Some(json::image::MimeType("image/png".into())),
+                name: Some("lightmap".into()),
+                uri: None,
+                extensions: None,
+                extras: Default::default(),
+            }
+        }
+    };
+    let texture = add_texture(&mut writer.root, image);
+    let mut materials = BTreeMap::new();
+    for ((node, mesh), primitives) in group_polygons(scene) {
+        let space = NodeSpace::new(&scene.layout.nodes[node].world, node)?;
+        let mut output = Vec::with_capacity(primitives.len());
+        for (primitive, polygons) in primitives {
+            let material_index = scene.layout.meshes[mesh].primitives[primitive].material;
+            let material = match materials.get(&material_index) {
+                Some(&m) => m,
+                None => {
+                    let source = scene.materials.get(material_index).ok_or_else(|| {
+                        ExportError::InvalidData(format!("missing material {material_index}"))
+                    })?;
+                    let m = writer.root.push(lit_material(source, texture, png.scale));
+                    materials.insert(material_index, m);
+                    m
+                }
+            };
+            let data = primitive_data(scene, lightmap, &space, &polygons)?;
+            output.push(add_primitive(&mut writer, &data, material));
+        }
+        let mesh_index = writer.root.push(json::Mesh {
+            extensions: None,
+            extras: Default::default(),
+            name: scene.layout.meshes[mesh].name.clone(),
+            primitives: output,
+            weights: None,
+        });
+        writer.root.nodes[node].mesh = Some(mesh_index);
+    }
+    writer.root.extensions_used.push(LIGHTMAP_EXTENSION.into());
+    if scene.materials.iter().any(|m| max3(m.emission) > 1.0) {
+        writer
+            .root
+            .extensions_used
+            .push(EMISSIVE_STRENGTH_EXTENSION.into());
+    }
+    let png_uri = match format {
+        OutputFormat::Gltf => Some(files::uri_for_file_name(&paths.png)),
+        OutputFormat::Glb => None,
+    };
+    let extras = extras(lightmap, png.scale, png_uri, &paths.exr).to_string();
+    let extras =
+        serde_json::value::RawValue::from_string(extras).map_err(|e| ExportError::Encode {
+            what: "glTF extras",
+            message: e.to_string(),
+        })?;
+    writer.root.extras = Some(extras);
+
+    let exr_path = paths.exr.as_path();
+    let written = match format {
+        OutputFormat::Gltf => {
+            let bin_path = files::bin_path_for(&paths.gltf)?;
+            let (root, bin) = writer.finish(Some(files::uri_for_file_name(&bin_path)));
+            let json = encode_json(&root)?;
+            write_all_atomically(&[
+                (exr_path, &exr),
+                (paths.png.as_path(), &png.bytes),
+                (bin_path.as_path(), &bin),
+                (paths.gltf.as_path(), &json),
+            ])?
+        }
+        OutputFormat::Glb => {
+            let (root, bin) = writer.finish(None);
+            let glb = encode_glb(&root, &bin)?;
+            write_all_atomically(&[(exr_path, &exr), (paths.gltf.as_path(), &glb)])?
+        }
+    };
+    Ok(LightmapWritten {
+        png_scale: png.scale,
+        files: written,
+    })
+}
+
+/// The root `extras`: what the lightmap is, its units and its files.
+fn extras(
+    lightmap: &Lightmap,
+    png_scale: f64,
+    png_uri: Option<String>,
+    exr: &Path,
+) -> serde_json::Value {
+    serde_json::json!({
+        LIGHTMAP_EXTRAS_KEY: {
+            "quantity": "irradiance",
+            "units": LIGHTMAP_UNITS,
+            "texcoord": 1,
+            "exr": files::uri_for_file_name(exr),
+            "exr_encoding": "linear RGB, 32-bit float, H per texel",
+            "png": png_uri,
+            "png_encoding": "8-bit sRGB-encoded; H = srgb_to_linear(value / 255) * png_scale \
+                             (MOZ_lightmap intensity)",
+            "png_scale": png_scale,
+            "texel_size": lightmap.texel_size,
+            "requested_texel_size": lightmap.requested_texel_size,
+            "atlas": [lightmap.width, lightmap.height],
+            "occupancy": lightmap.stats.occupancy,
+        }
+    })
+}
+
+fn add_texture(root: &mut json::Root, image: json::Image) -> Index<json::Texture> {
+    use json::texture::{MagFilter, MinFilter, WrappingMode};
+    let image = root.push(image);
+    let sampler = root.push(json::texture::Sampler {
+        mag_filter: Some(Checked::Valid(MagFilter::Linear)),
+        min_filter: Some(Checked::Valid(MinFilter::LinearMipmapLinear)),
+        name: None,
+        wrap_s: Checked::Valid(WrappingMode::ClampToEdge),
+        wrap_t: Checked::Valid(WrappingMode::ClampToEdge),
+        extensions: None,
+        extras: Default::default(),
+    });
+    root.push(json::Texture {
+        name: Some("lightmap".into()),
+        sampler: Some(sampler),
+        source: image,
+        extensions: None,
+        extras: Default::default(),
+    })
+}
+
+fn max3(v: [f64; 3]) -> f64 {
+    v[0].max(v[1]).max(v[2])
+}
+
+/// A lit (metallic-roughness) material from the input's: base colour ρ, fully rough
+/// dielectric, emission e (above 1 through `KHR_materials_emissive_strength`), single-sided
+/// (both sides of a double-sided surface are written as their own triangles), and the
+/// lightmap through `MOZ_lightmap`.
+fn lit_material(source: &Material, texture: Index<json::Texture>, scale: f64) -> json::Material {
+    let rho = source.rho.map(|r| r as f32);
+    let peak = max3(source.emission);
+    let (emissive, strength) = if peak > 1.0 {
+        (
+            source.emission.map(|e| (e / peak) as f32),
+            Some(peak as f32),
+        )
+    } else {
+        (source.emission.map(|e| e as f32), None)
+    };
+    let mut extensions = json::extensions::material::Material {
+        emissive_strength: strength.map(|s| json::extensions::material::EmissiveStrength {
+            emissive_strength: json::extensions::material::EmissiveStrengthFactor(s),
+        }),
+        ..Default::default()
+    };
+    extensions.others.insert(
+        LIGHTMAP_EXTENSION.into(),
+        serde_json::json!({ "index": texture.value(), "texCoord": 1, "intensity": scale }),
+    );
+    json::Material {
+        name: source.name.clone(),
+        pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+            base_color_factor: json::material::PbrBaseColorFactor([rho[0], rho[1], rho[2], 1.0]),
+            metallic_factor: json::material::StrengthFactor(0.0),
+            roughness_factor: json::material::StrengthFactor(1.0),
+            ..Default::default()
+        },
+        emissive_factor: json::material::EmissiveFactor(emissive),
+        double_sided: false,
+        extensions: Some(extensions),
+        ..Default::default()
+    }
+}
+
+/// node → (mesh, [(primitive, polygon indices in polygon order)]), in node then primitive order.
+type Groups = BTreeMap<(usize, usize), BTreeMap<usize, Vec<usize>>>;
+
+fn group_polygons(scene: &Scene) -> Groups {
+    let mut groups = Groups::new();
+    for (index, polygon) in scene.polygons.iter().enumerate() {
+        let o = polygon.origin;
+        groups
+            .entry((o.node, o.mesh))
+            .or_default()
+            .entry(o.primitive)
+            .or_default()
+            .push(index);
+    }
+    groups
+}
+
+/// One output primitive's vertex data (node-local, f32).
+struct PrimitiveData {
+    positions: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
+    texcoords: Vec<[f32; 2]>,
+    indices: Vec<u32>,
+}
+
+fn primitive_data(
+    scene: &Scene,
+    lightmap: &Lightmap,
+    space: &NodeSpace,
+    polygons: &[usize],
+) -> Result<PrimitiveData, ExportError> {
+    let mut data = PrimitiveData {
+        positions: Vec::new(),
+        normals: Vec::new(),
+        texcoords: Vec::new(),
+        indices: Vec::new(),
+    };
+    for &p in polygons {
+        let polygon = &scene.polygons[p];
+        let normal = space
+            .normal(polygon.normal)
+            .ok_or_else(|| ExportError::InvalidData(format!("polygon {p} has no usable normal")))?;
+        let first = u32::try_from(data.positions.len())
+            .map_err(|_| ExportError::InvalidData("too many vertices".into()))?;
+        for (k, vertex) in polygon.vertices.iter().enumerate() {
+            let local = space.position(*vertex).to_array().map(|x| x as f32);
+            if !local.iter().all(|x| x.is_finite()) {
+                return Err(ExportError::InvalidData(format!(
+                    "vertex {k} of polygon {p} does not fit in f32 in its node's space"
+                )));
+            }
+            data.positions.push(local);
+            data.normals.push(normal.to_array().map(|x| x as f32));
+            data.texcoords.push(lightmap.texcoord(p, k));
+        }
+        for k in 1..polygon.vertices.len() as u32 - 1 {
+            let (a, b, c) = (first, first + k, first + k + 1);
+            if space.mirrored {
+                data.indices.extend([a, c, b]);
+            } else {
+                data.indices.extend([a, b, c]);
+            }
+        }
+    }
+    Ok(data)
+}
+
+fn add_primitive(
+    writer: &mut DocumentWriter,
+    data: &PrimitiveData,
+    material: Index<json::Material>,
+) -> json::mesh::Primitive {
+    let mut attributes = BTreeMap::new();
+    let position = writer.add_vec3(&data.positions, true);
+    attributes.insert(Checked::Valid(Semantic::Positions), position);
+    let normal = writer.add_vec3(&data.normals, false);
+    attributes.insert(Checked::Valid(Semantic::Normals), normal);
+    let uv1 = add_vec2(writer, &data.texcoords);
+    // glTF numbers UV sets from 0 without gaps: TEXCOORD_0 (the same chart layout; the input's
+    // own UVs are not kept) makes TEXCOORD_1 valid.
+    attributes.insert(Checked::Valid(Semantic::TexCoords(0)), uv1);
+    attributes.insert(Checked::Valid(Semantic::TexCoords(1)), uv1);
+    let indices = writer.add_indices(&data.indices, data.positions.len());
+    json::mesh::Primitive {
+        attributes,
+        extensions: None,
+        extras: Default::default(),
+        indices: Some(indices),
+        material: Some(material),
+        mode: Checked::Valid(Mode::Triangles),
+        targets: None,
+    }
+}
+
+fn add_vec2(writer: &mut DocumentWriter, values: &[[f32; 2]]) -> Index<json::Accessor> {
+    let bytes: Vec<u8> = values
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let view = writer.add_view(&bytes, Target::ArrayBuffer);
+    writer.root.push(accessor(
+        view,
+        values.len(),
+        ComponentType::F32,
+        Type::Vec2,
+        None,
+        None,
+    ))
+}
+
+/// World → one node's local space (the vertex exporter's rule).
+struct NodeSpace {
+    world_to_local: DMat4,
+    normal_to_local: DMat3,
+    mirrored: bool,
+}
+
+impl NodeSpace {
+    fn new(world: &DMat4, node: usize) -> Result<Self, ExportError> {
+        let determinant = world.determinant();
+        if determinant == 0.0 || !determinant.is_finite() {
+            return Err(ExportError::InvalidData(format!(
+                "node {node} has a singular world transform"
+            )));
+        }
+        Ok(NodeSpace {
+            world_to_local: world.inverse(),
+            normal_to_local: DMat3::from_mat4(*world).transpose(),
+            mirrored: determinant < 0.0,
+        })
+    }
+
+    fn position(&self, world: DVec3) -> DVec3 {
+        self.world_to_local.transform_point3(world)
+    }
+
+    fn normal(&self, world: DVec3) -> Option<DVec3> {
+        (self.normal_to_local * world).try_normalize()
+    }
+}
+
+/// Writes every file to a temporary first, then renames them into place in order (the glTF
+/// last, so it never names a file that is not there yet). On error nothing new is left.
+fn write_all_atomically(files_to_write: &[(&Path, &[u8])]) -> Result<Vec<PathBuf>, ExportError> {
+    let mut temporaries = Vec::with_capacity(files_to_write.len());
+    for (path, bytes) in files_to_write {
+        match files::write_temporary(path, bytes) {
+            Ok(temporary) => temporaries.push(temporary),
+            Err(error) => {
+                temporaries.iter().for_each(|t| files::remove_quietly(t));
+                return Err(error);
+            }
+        }
+    }
+    for (k, ((path, _), temporary)) in files_to_write.iter().zip(&temporaries).enumerate() {
+        if let Err(error) = files::rename_into_place(temporary, path) {
+            temporaries[k + 1..]
+                .iter()
+                .for_each(|t| files::remove_quietly(t));
+            return Err(error);
+        }
+    }
+    Ok(files_to_write
+        .iter()
+        .map(|(p, _)| p.to_path_buf())
+        .collect())
+}

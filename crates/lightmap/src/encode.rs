@@ -1,0 +1,102 @@
+//! Image files for a lightmap: linear float EXR (exact) and 8-bit sRGB-encoded PNG with a
+//! scale (for viewers: what `MOZ_lightmap` points at).
+
+use crate::{Lightmap, LightmapError, Texel};
+use std::io::Cursor;
+
+/// What the EXR's `comments` attribute says about its content.
+pub const EXR_COMMENT: &str = "bake lightmap: irradiance H per texel, linear, in the bake's \
+intensity units (the units of emission e and radiosity b: b = e + rho*H)";
+
+/// An encoded PNG lightmap and the factor that turns its decoded values back into H.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PngLightmap {
+    pub bytes: Vec<u8>,
+    /// `H = srgb_to_linear(value / 255) × scale`: the largest H of any written texel (1 when
+    /// every texel is 0). This is `MOZ_lightmap.intensity`.
+    pub scale: f64,
+}
+
+/// The lightmap as an OpenEXR file: one layer, channels R, G, B as 32-bit floats (f16 would
+/// lose ~1e-3 relative), lossless ZIP compression, written on one thread so the bytes never
+/// depend on the thread count.
+pub fn encode_exr(lightmap: &Lightmap) -> Result<Vec<u8>, LightmapError> {
+    use exr::prelude::*;
+    let width = lightmap.width as usize;
+    let texels = &lightmap.texels;
+    let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
+        let t = texels[y * width + x];
+        (t[0], t[1], t[2])
+    });
+    let mut image = Image::from_encoded_channels(
+        (width, lightmap.height as usize),
+        Encoding::SMALL_LOSSLESS,
+        channels,
+    );
+    image.layer_data.attributes.comments = Some(Text::from(EXR_COMMENT));
+    let mut cursor = Cursor::new(Vec::new());
+    image
+        .write()
+        .non_parallel()
+        .to_buffered(&mut cursor)
+        .map_err(|e| LightmapError::Encode {
+            what: "EXR",
+            message: e.to_string(),
+        })?;
+    Ok(cursor.into_inner())
+}
+
+/// sRGB transfer function (IEC 61966-2-1), linear [0, 1] → encoded [0, 1].
+pub fn linear_to_srgb(v: f64) -> f64 {
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Inverse of [`linear_to_srgb`].
+pub fn srgb_to_linear(v: f64) -> f64 {
+    if v <= 0.040_45 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// The lightmap as an 8-bit RGB PNG: each texel is `H / scale`, sRGB-encoded (more of the
+/// 256 levels go to the dark end, as for any colour texture; viewers must decode it as sRGB).
+pub fn encode_png(lightmap: &Lightmap) -> Result<PngLightmap, LightmapError> {
+    use image::ImageEncoder;
+    let max = lightmap
+        .texels
+        .iter()
+        .zip(&lightmap.coverage)
+        .filter(|(_, c)| !matches!(c, Texel::Unused))
+        .flat_map(|(t, _)| t.iter().copied())
+        .fold(0.0f32, f32::max);
+    let scale = if max > 0.0 { f64::from(max) } else { 1.0 };
+    let bytes: Vec<u8> = lightmap
+        .texels
+        .iter()
+        .flat_map(|t| {
+            t.map(|v| {
+                let encoded = linear_to_srgb((f64::from(v) / scale).clamp(0.0, 1.0));
+                (encoded * 255.0).round() as u8
+            })
+        })
+        .collect();
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(
+            &bytes,
+            lightmap.width,
+            lightmap.height,
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| LightmapError::Encode {
+            what: "PNG",
+            message: e.to_string(),
+        })?;
+    Ok(PngLightmap { bytes: png, scale })
+}

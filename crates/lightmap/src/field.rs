@@ -1,0 +1,419 @@
+//! The smoothed field on one polygon: its element grid's vertex values, interpolated the way
+//! the element mesh is built (bilinear over a quad's elements, linear over a triangle's), and
+//! the weld that makes coplanar neighbours of the same material agree along shared edges.
+
+use crate::LightmapError;
+use glam::{DVec2, DVec3};
+use importer::Polygon;
+use mesher::{ElementMesh, PatchGrid};
+
+/// How a polygon's vertex grid is laid out (see `mesher::mesh`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Grid {
+    /// (nu+1)×(nv+1) vertices, row-major in t: vertex (i, j) is `base + j (nu+1) + i`, at the
+    /// bilinear point P(i/nu, j/nv) of the quad v0 v1 v2 v3.
+    Quad { base: u32, nu: u32, nv: u32 },
+    /// Rows k = 0..=n of n−k+1 vertices: vertex (i, k) is at v0 + (i/n)(v1−v0) + (k/n)(v2−v0).
+    Triangle { base: u32, n: u32 },
+}
+
+/// A polygon in its own plane frame plus its grid layout.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Field {
+    origin: DVec3,
+    e1: DVec3,
+    e2: DVec3,
+    /// The polygon's vertices in the plane frame (counter-clockwise).
+    pub(crate) corners: Vec<DVec2>,
+    pub(crate) grid: Grid,
+    pub(crate) normal: DVec3,
+}
+
+impl Field {
+    /// Reads the grid layout of polygon `index` from the mesh and checks that it is the one
+    /// `mesher::mesh` builds (counts and corner positions).
+    pub(crate) fn new(
+        polygon: &Polygon,
+        patch: &PatchGrid,
+        mesh: &ElementMesh,
+        index: usize,
+    ) -> Result<Field, LightmapError> {
+        let bad = |why: &str| LightmapError::InvalidData(format!("polygon {index}: {why}"));
+        let v = &polygon.vertices;
+        let base = patch.vertices.start;
+        let vertex_count = patch.vertices.len() as u64;
+        let element_count = patch.elements.len() as u64;
+        if element_count == 0 || patch.vertices.end as usize > mesh.vertices.len() {
+            return Err(bad("no elements or missing vertices"));
+        }
+        let grid = match v.len() {
+            4 => {
+                let first = mesh
+                    .elements
+                    .get(patch.elements.start as usize)
+                    .ok_or_else(|| bad("missing element"))?;
+                let nu = u64::from(first.corners[3].wrapping_sub(base)).saturating_sub(1);
+                if nu == 0 || !element_count.is_multiple_of(nu) {
+                    return Err(bad("not a quad grid"));
+                }
+                let nv = element_count / nu;
+                if (nu + 1) * (nv + 1) != vertex_count {
+                    return Err(bad("not a quad grid"));
+                }
+                Grid::Quad {
+                    base,
+                    nu: nu as u32,
+                    nv: nv as u32,
+                }
+            }
+            3 => {
+                let n = (element_count as f64).sqrt().round() as u64;
+                if n == 0 || n * n != element_count || (n + 1) * (n + 2) / 2 != vertex_count {
+                    return Err(bad("not a triangle grid"));
+                }
+                Grid::Triangle { base, n: n as u32 }
+            }
+            sides => return Err(bad(&format!("{sides} vertices"))),
+        };
+        let origin = v[0];
+        let e1 = (v[1] - v[0])
+            .try_normalize()
+            .ok_or_else(|| bad("zero-length edge"))?;
+        let e2 = polygon.normal.cross(e1);
+        let mut field = Field {
+            origin,
+            e1,
+            e2,
+            corners: Vec::new(),
+            grid,
+            normal: polygon.normal,
+        };
+        field.corners = v.iter().map(|p| field.to_plane(*p)).collect();
+        // The grid's corner vertices must be the polygon's corners.
+        let size = v.iter().map(|p| p.distance(v[0])).fold(0.0, f64::max);
+        let corner_ids: Vec<u32> = match grid {
+            Grid::Quad { base, nu, nv } => vec![
+                base,
+                base + nu,
+                base + nv * (nu + 1) + nu,
+                base + nv * (nu + 1),
+            ],
+            Grid::Triangle { base, n } => vec![base, base + n, base + vertex_count as u32 - 1],
+        };
+        for (corner, id) in v.iter().zip(corner_ids) {
+            if corner.distance(mesh.vertices[id as usize]) > 1e-9 * size {
+                return Err(bad("the element grid does not match the polygon"));
+            }
+        }
+        Ok(field)
+    }
+
+    /// World point → plane coordinates.
+    pub(crate) fn to_plane(&self, p: DVec3) -> DVec2 {
+        let d = p - self.origin;
+        DVec2::new(d.dot(self.e1), d.dot(self.e2))
+    }
+
+    /// Plane coordinates → world point.
+    pub(crate) fn to_world(&self, q: DVec2) -> DVec3 {
+        self.origin + self.e1 * q.x + self.e2 * q.y
+    }
+
+    /// The grid parameters of plane point `q`: (s, t) of the quad's bilinear map, or the
+    /// triangle's (β, γ) with q = v0 + β(v1−v0) + γ(v2−v0). Points outside give parameters
+    /// outside the unit square / triangle (extrapolation).
+    pub(crate) fn params(&self, q: DVec2) -> DVec2 {
+        let c = &self.corners;
+        match self.grid {
+            Grid::Quad { .. } => inverse_bilinear(q, c[0], c[1], c[2], c[3]),
+            Grid::Triangle { .. } => {
+                let (b, g, h) = (c[1] - c[0], c[2] - c[0], q - c[0]);
+                let det = cross(b, g);
+                DVec2::new(cross(h, g) / det, cross(b, h) / det)
+            }
+        }
+    }
+
+    /// The field at grid parameters `p` (see [`Field::params`]), from per-mesh-vertex values.
+    /// Outside the polygon the nearest element's interpolant is extended.
+    pub(crate) fn value_at_params(&self, p: DVec2, values: &[[f64; 3]]) -> [f64; 3] {
+        let at = |id: u32| values[id as usize];
+        match self.grid {
+            Grid::Quad { base, nu, nv } => {
+                let (x, y) = (p.x * f64::from(nu), p.y * f64::from(nv));
+                let i = clamp_cell(x, nu);
+                let j = clamp_cell(y, nv);
+                let (fx, fy) = (x - f64::from(i), y - f64::from(j));
+                let id = |i: u32, j: u32| base + j * (nu + 1) + i;
+                let (v00, v10, v11, v01) = (
+                    at(id(i, j)),
+                    at(id(i + 1, j)),
+                    at(id(i + 1, j + 1)),
+                    at(id(i, j + 1)),
+                );
+                std::array::from_fn(|c| {
+                    (1.0 - fy) * ((1.0 - fx) * v00[c] + fx * v10[c])
+                        + fy * ((1.0 - fx) * v01[c] + fx * v11[c])
+                })
+            }
+            Grid::Triangle { base, n } => {
+                let (x, y) = (p.x * f64::from(n), p.y * f64::from(n));
+                let k = clamp_cell(y, n);
+                let i = clamp_cell(x, n - k);
+                let (fx, fy) = (x - f64::from(i), y - f64::from(k));
+                let row_start = |k: u32| k * (n + 1) - k * k.saturating_sub(1) / 2;
+                let id = |i: u32, k: u32| base + row_start(k) + i;
+                let has_down = i + 1 < n - k;
+                if fx + fy <= 1.0 || !has_down {
+                    let (a, b, c) = (at(id(i, k)), at(id(i + 1, k)), at(id(i, k + 1)));
+                    std::array::from_fn(|m| a[m] + fx * (b[m] - a[m]) + fy * (c[m] - a[m]))
+                } else {
+                    let (a, b, c) = (at(id(i + 1, k)), at(id(i + 1, k + 1)), at(id(i, k + 1)));
+                    std::array::from_fn(|m| {
+                        b[m] + (1.0 - fy) * (a[m] - b[m]) + (1.0 - fx) * (c[m] - b[m])
+                    })
+                }
+            }
+        }
+    }
+
+    /// The field at plane point `q`.
+    pub(crate) fn value_at(&self, q: DVec2, values: &[[f64; 3]]) -> [f64; 3] {
+        self.value_at_params(self.params(q), values)
+    }
+
+    /// Mesh vertex ids of the grid vertices on the polygon's boundary, in id order.
+    pub(crate) fn boundary_vertices(&self) -> Vec<u32> {
+        let mut ids = Vec::new();
+        match self.grid {
+            Grid::Quad { base, nu, nv } => {
+                for j in 0..=nv {
+                    for i in 0..=nu {
+                        if i == 0 || j == 0 || i == nu || j == nv {
+                            ids.push(base + j * (nu + 1) + i);
+                        }
+                    }
+                }
+            }
+            Grid::Triangle { base, n } => {
+                let mut id = base;
+                for k in 0..=n {
+                    for i in 0..=(n - k) {
+                        if k == 0 || i == 0 || i == n - k {
+                            ids.push(id);
+                        }
+                        id += 1;
+                    }
+                }
+            }
+        }
+        ids
+    }
+
+    /// Whether plane point `q` lies in the closed polygon, with tolerance `tol` (distance).
+    pub(crate) fn contains(&self, q: DVec2, tol: f64) -> bool {
+        let c = &self.corners;
+        (0..c.len()).all(|k| {
+            let (a, b) = (c[k], c[(k + 1) % c.len()]);
+            let edge = b - a;
+            cross(edge, q - a) >= -tol * edge.length()
+        })
+    }
+}
+
+/// The cell index of grid coordinate `x` among `cells` cells, clamped so points outside use
+/// the nearest cell.
+fn clamp_cell(x: f64, cells: u32) -> u32 {
+    if x.is_nan() || x < 0.0 {
+        0
+    } else {
+        (x.floor() as u64).min(u64::from(cells.max(1) - 1)) as u32
+    }
+}
+
+pub(crate) fn cross(a: DVec2, b: DVec2) -> f64 {
+    a.x * b.y - a.y * b.x
+}
+
+/// (s, t) with q = (1−t)((1−s)a + s b) + t((1−s)d + s c), the root nearest the unit square.
+pub(crate) fn inverse_bilinear(q: DVec2, a: DVec2, b: DVec2, c: DVec2, d: DVec2) -> DVec2 {
+    let (e, f, g, h) = (b - a, d - a, a - b + c - d, q - a);
+    let k2 = cross(g, f);
+    let k1 = cross(e, f) + cross(h, g);
+    let k0 = cross(h, e);
+    let s_for = |t: f64| {
+        let axis = e + g * t;
+        (h - f * t).dot(axis) / axis.length_squared()
+    };
+    let distance = |p: DVec2| (-p.x).max(p.x - 1.0).max(0.0) + (-p.y).max(p.y - 1.0).max(0.0);
+    let mut candidates = Vec::with_capacity(2);
+    if k2 == 0.0 {
+        candidates.push(-k0 / k1);
+    } else {
+        let w = (k1 * k1 - 4.0 * k0 * k2).max(0.0).sqrt();
+        let q = -0.5 * (k1 + k1.signum() * w);
+        if q == 0.0 {
+            candidates.push(0.0);
+        } else {
+            candidates.push(k0 / q);
+            candidates.push(q / k2);
+        }
+    }
+    let mut best = DVec2::new(f64::NAN, f64::NAN);
+    let mut best_distance = f64::INFINITY;
+    for t in candidates {
+        if !t.is_finite() {
+            continue;
+        }
+        let p = DVec2::new(s_for(t), t);
+        let dist = distance(p);
+        if p.x.is_finite() && dist < best_distance {
+            best = p;
+            best_distance = dist;
+        }
+    }
+    best
+}
+
+/// Averages, at every boundary grid vertex, the fields of all coplanar polygons of the same
+/// material (same facing) whose closed area contains it, so that such neighbours agree along
+/// shared edges. Reads the unwelded `values`; returns the welded values and how many vertices
+/// changed. Exact agreement where the two grids' vertices coincide along the edge; elsewhere
+/// (T-junctions, different subdivisions) each side moves half-way towards the other.
+pub(crate) fn weld(
+    polygons: &[Polygon],
+    fields: &[Field],
+    values: &[[f64; 3]],
+    tol: f64,
+) -> (Vec<[f64; 3]>, usize) {
+    let candidates = coplanar_neighbours(polygons, fields, tol);
+    let mut welded = values.to_vec();
+    let mut count = 0;
+    for (a, neighbours) in candidates.iter().enumerate() {
+        if neighbours.is_empty() {
+            continue;
+        }
+        for id in fields[a].boundary_vertices() {
+            let world = fields[a].to_world(fields[a].vertex_point(id));
+            let mut sum = values[id as usize];
+            let mut n = 1.0;
+            for &b in neighbours {
+                let q = fields[b].to_plane(world);
+                if fields[b].contains(q, tol) {
+                    let v = fields[b].value_at(q, values);
+                    for c in 0..3 {
+                        sum[c] += v[c];
+                    }
+                    n += 1.0;
+                }
+            }
+            if n > 1.0 {
+                welded[id as usize] = sum.map(|s| s / n);
+                count += 1;
+            }
+        }
+    }
+    (welded, count)
+}
+
+impl Field {
+    /// The plane position of grid vertex `id` (recomputed from the grid parameters so it does
+    /// not depend on the mesh's rounding).
+    pub(crate) fn vertex_point(&self, id: u32) -> DVec2 {
+        let c = &self.corners;
+        match self.grid {
+            Grid::Quad { base, nu, nv } => {
+                let local = id - base;
+                let (i, j) = (local % (nu + 1), local / (nu + 1));
+                let (s, t) = (f64::from(i) / f64::from(nu), f64::from(j) / f64::from(nv));
+                let bottom = c[0].lerp(c[1], s);
+                let top = c[3].lerp(c[2], s);
+                bottom.lerp(top, t)
+            }
+            Grid::Triangle { base, n } => {
+                let mut local = id - base;
+                let mut k = 0;
+                while local > n - k {
+                    local -= n - k + 1;
+                    k += 1;
+                }
+                let (s, t) = (f64::from(local) / f64::from(n), f64::from(k) / f64::from(n));
+                c[0] + (c[1] - c[0]) * s + (c[2] - c[0]) * t
+            }
+        }
+    }
+}
+
+/// For each polygon, the other polygons that are coplanar with it (same facing, within
+/// `tol`), of the same material, and whose bounding boxes touch its own (sweep over x).
+fn coplanar_neighbours(polygons: &[Polygon], fields: &[Field], tol: f64) -> Vec<Vec<usize>> {
+    let boxes: Vec<(DVec3, DVec3)> = polygons
+        .iter()
+        .map(|p| {
+            let lo = p.vertices.iter().fold(DVec3::INFINITY, |m, v| m.min(*v));
+            let hi = p
+                .vertices
+                .iter()
+                .fold(DVec3::NEG_INFINITY, |m, v| m.max(*v));
+            (lo - DVec3::splat(tol), hi + DVec3::splat(tol))
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..polygons.len()).collect();
+    order.sort_by(|&a, &b| boxes[a].0.x.total_cmp(&boxes[b].0.x).then(a.cmp(&b)));
+    let mut out = vec![Vec::new(); polygons.len()];
+    for (k, &a) in order.iter().enumerate() {
+        for &b in &order[k + 1..] {
+            if boxes[b].0.x > boxes[a].1.x {
+                break;
+            }
+            let overlap = (0..3).all(|axis| {
+                boxes[a].0[axis] <= boxes[b].1[axis] && boxes[b].0[axis] <= boxes[a].1[axis]
+            });
+            if overlap && coplanar(&polygons[a], &polygons[b], &fields[a], tol) {
+                out[a].push(b);
+                out[b].push(a);
+            }
+        }
+    }
+    for list in &mut out {
+        list.sort_unstable();
+    }
+    out
+}
+
+fn coplanar(a: &Polygon, b: &Polygon, field_a: &Field, tol: f64) -> bool {
+    a.material == b.material
+        && a.normal.dot(b.normal) > 1.0 - 1e-9
+        && b.vertices
+            .iter()
+            .all(|v| (*v - a.vertices[0]).dot(field_a.normal).abs() <= tol)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inverse_bilinear_recovers_parameters() {
+        let (a, b, c, d) = (
+            DVec2::new(0.0, 0.0),
+            DVec2::new(2.0, 0.0),
+            DVec2::new(1.5, 1.0),
+            DVec2::new(0.5, 1.0),
+        );
+        for &(s, t) in &[(0.0, 0.0), (0.3, 0.7), (1.0, 1.0), (0.5, 0.5), (-0.1, 1.05)] {
+            let q = (a.lerp(b, s)).lerp(d.lerp(c, s), t);
+            let p = inverse_bilinear(q, a, b, c, d);
+            assert!((p - DVec2::new(s, t)).length() < 1e-12, "{s} {t}: {p}");
+        }
+        // A rectangle (k2 = 0).
+        let r = [
+            DVec2::new(1.0, 1.0),
+            DVec2::new(4.0, 1.0),
+            DVec2::new(4.0, 3.0),
+            DVec2::new(1.0, 3.0),
+        ];
+        let p = inverse_bilinear(DVec2::new(2.5, 2.5), r[0], r[1], r[2], r[3]);
+        assert!((p - DVec2::new(0.5, 0.75)).length() < 1e-12);
+    }
+}

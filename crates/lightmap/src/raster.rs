@@ -1,0 +1,151 @@
+//! Texel reconstruction: every texel that bilinear filtering reads for some point of a chart
+//! (its footprint) holds the field at the surface point the texel's centre maps to; every
+//! other texel of the region copies its nearest footprint texel (the gutter).
+
+use crate::chart::Region;
+use crate::field::{cross, Field};
+use crate::Texel;
+use glam::DVec2;
+
+/// Gutter texels further than this (texels) from every footprint texel of their region stay
+/// unused: only the empty half of a lone triangle's rectangle is that far, and no filter
+/// reaches it.
+pub const DILATION_RADIUS: i64 = 8;
+
+/// One region's texels, row-major over the region.
+pub(crate) struct RegionTexels {
+    pub(crate) values: Vec<[f32; 3]>,
+    pub(crate) coverage: Vec<Texel>,
+}
+
+/// Whether the closed square of half-side 1 around `c` meets the convex polygon `uv`: the
+/// texel at `c` is read by bilinear filtering for some point of the polygon.
+pub(crate) fn in_footprint(c: DVec2, uv: &[DVec2]) -> bool {
+    let (lo, hi) = uv.iter().fold(
+        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    if lo.x > c.x + 1.0 || hi.x < c.x - 1.0 || lo.y > c.y + 1.0 || hi.y < c.y - 1.0 {
+        return false;
+    }
+    // Separating axes: the polygon's edge normals.
+    for k in 0..uv.len() {
+        let edge = uv[(k + 1) % uv.len()] - uv[k];
+        let normal = DVec2::new(-edge.y, edge.x);
+        let (min, max) = uv
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+                let d = p.dot(normal);
+                (a.min(d), b.max(d))
+            });
+        let centre = c.dot(normal);
+        let reach = normal.x.abs() + normal.y.abs();
+        if centre - reach > max + 1e-9 * reach || centre + reach < min - 1e-9 * reach {
+            return false;
+        }
+    }
+    true
+}
+
+/// Whether `c` lies in the closed convex polygon `uv` (either winding).
+pub(crate) fn inside(c: DVec2, uv: &[DVec2]) -> bool {
+    let n = uv.len();
+    let sides: Vec<f64> = (0..n)
+        .map(|k| cross(uv[(k + 1) % n] - uv[k], c - uv[k]))
+        .collect();
+    sides.iter().all(|&s| s >= 0.0) || sides.iter().all(|&s| s <= 0.0)
+}
+
+/// Barycentric coordinates of `c` in triangle (a, b, d).
+fn barycentric(c: DVec2, a: DVec2, b: DVec2, d: DVec2) -> [f64; 3] {
+    let det = cross(b - a, d - a);
+    let l1 = cross(c - a, d - a) / det;
+    let l2 = cross(b - a, c - a) / det;
+    [1.0 - l1 - l2, l1, l2]
+}
+
+/// The field at texel-space point `c` of a chart: through the glTF triangles (v0 v1 v2) and
+/// (v0 v2 v3) — the ones a renderer interpolates TEXCOORD_1 over — to the surface point, then
+/// the grid. Outside the chart the nearer triangle's affine map is extended. Clamped to ≥ 0.
+pub(crate) fn chart_value(c: DVec2, uv: &[DVec2], field: &Field, values: &[[f64; 3]]) -> [f64; 3] {
+    let corners = &field.corners;
+    let point = if uv.len() == 3 {
+        let l = barycentric(c, uv[0], uv[1], uv[2]);
+        corners[0] * l[0] + corners[1] * l[1] + corners[2] * l[2]
+    } else {
+        let first = barycentric(c, uv[0], uv[1], uv[2]);
+        let second = barycentric(c, uv[0], uv[2], uv[3]);
+        let min = |l: &[f64; 3]| l[0].min(l[1]).min(l[2]);
+        if min(&first) >= min(&second) {
+            corners[0] * first[0] + corners[1] * first[1] + corners[2] * first[2]
+        } else {
+            corners[0] * second[0] + corners[2] * second[1] + corners[3] * second[2]
+        }
+    };
+    field.value_at(point, values).map(|v| v.max(0.0))
+}
+
+/// Reconstructs one region: footprints first, then the gutter by nearest footprint texel
+/// (squared distance between centres; ties go to the first in row-major order).
+pub(crate) fn region_texels(
+    region: &Region,
+    fields: &[Field],
+    values: &[[f64; 3]],
+) -> RegionTexels {
+    let (w, h) = (region.width as usize, region.height as usize);
+    let mut out = RegionTexels {
+        values: vec![[0.0; 3]; w * h],
+        coverage: vec![Texel::Unused; w * h],
+    };
+    for y in 0..h {
+        for x in 0..w {
+            let c = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+            for (polygon, uv) in &region.charts {
+                if in_footprint(c, uv) {
+                    let v = chart_value(c, uv, &fields[*polygon], values);
+                    out.values[y * w + x] = v.map(|v| v as f32);
+                    out.coverage[y * w + x] = Texel::Chart(*polygon as u32);
+                    break;
+                }
+            }
+        }
+    }
+    let footprint: Vec<bool> = out
+        .coverage
+        .iter()
+        .map(|t| matches!(t, Texel::Chart(_)))
+        .collect();
+    for y in 0..h as i64 {
+        for x in 0..w as i64 {
+            if footprint[y as usize * w + x as usize] {
+                continue;
+            }
+            let mut best: Option<(i64, usize)> = None;
+            for dy in -DILATION_RADIUS..=DILATION_RADIUS {
+                let sy = y + dy;
+                if sy < 0 || sy >= h as i64 {
+                    continue;
+                }
+                for dx in -DILATION_RADIUS..=DILATION_RADIUS {
+                    let sx = x + dx;
+                    if sx < 0 || sx >= w as i64 {
+                        continue;
+                    }
+                    let k = sy as usize * w + sx as usize;
+                    let d = dx * dx + dy * dy;
+                    if footprint[k] && best.is_none_or(|(bd, bk)| (d, k) < (bd, bk)) {
+                        best = Some((d, k));
+                    }
+                }
+            }
+            if let Some((_, k)) = best {
+                let here = y as usize * w + x as usize;
+                out.values[here] = out.values[k];
+                if let Texel::Chart(p) = out.coverage[k] {
+                    out.coverage[here] = Texel::Gutter(p);
+                }
+            }
+        }
+    }
+    out
+}
