@@ -97,6 +97,15 @@ pub struct Cli {
     #[arg(long)]
     pub ff_fixed_order: bool,
 
+    /// Hidden surfaces: shadow rays per element pair that some polygon may come between
+    /// (rounded to a square of strata, 1…1024). Pairs nothing can come between (every pair of
+    /// a convex enclosure such as the paper's cube) keep the exact form factor and cast no
+    /// ray. Measured on the Cornell box: 49 / 121 / 289 / 961 rays give an rms error of the
+    /// visible fraction of 0.030 / 0.016 / 0.009 / 0.005.
+    #[arg(long, value_name = "K", default_value_t = form_factor::visibility::DEFAULT_SAMPLES,
+          value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub visibility_samples: u32,
+
     /// What to write. `vertex`: OUT holds the element mesh with the radiosity in COLOR_0
     /// (unlit). `lightmap`: OUT holds the input's polygons (not subdivided) with lit materials,
     /// TEXCOORD_1 and a MOZ_lightmap PNG (OUT's stem + .lightmap.png), plus OUT's stem +

@@ -2,8 +2,8 @@
 
 use crate::{Cli, Shading, SolverKind, Target};
 use anyhow::{anyhow, Context};
-use exporter::report::{self, EnergyInfo, Report, SolverInfo, SolverMethod};
-use form_factor::{ContourOptions, FormFactors};
+use exporter::report::{self, Effects, EnergyInfo, Report, SolverInfo, SolverMethod};
+use form_factor::{ContourOptions, FormFactors, Occluders, Occlusion};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use mesher::Subdivision;
 use std::collections::BTreeMap;
@@ -105,8 +105,24 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         auto_order: !cli.ff_fixed_order,
         ..ContourOptions::default()
     };
+    // Occlusion only where the scene calls for it: polygon pairs a third polygon can come
+    // between get shadow rays, all others keep the exact contour value.
+    let occluders = Occluders::new(&scene.polygons)
+        .with_context(|| format!("{}: cannot build the occlusion structure", input.display()))
+        .map_err(bad_input)?;
+    let occludable = occluders.occludable_pairs();
+    let effects = occludable.effects();
+    stage("visibility_setup", &mut lap);
+    let mut form_factors = FormFactors::new(&mesh, contour);
+    if effects.occlusion {
+        form_factors = form_factors.with_occlusion(Occlusion {
+            occluders: &occluders,
+            pairs: &occludable,
+            samples: cli.visibility_samples,
+        });
+    }
     let bar = progress_bar(cli.quiet, n as u64, "form factors");
-    let matrix = FormFactors::new(&mesh, contour).dense_with_progress(&|rows| bar.inc(rows));
+    let matrix = form_factors.dense_with_progress(&|rows| bar.inc(rows));
     bar.finish_and_clear();
     stage("form_factors", &mut lap);
 
@@ -219,6 +235,13 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             .map_err(internal)?;
         report.options = options_json(cli, subdivision, contour, &scene);
         report.counts.pairs_evaluated = matrix.stats.pairs_integrated;
+        report.counts.pairs_tested = matrix.stats.visibility.pairs_tested;
+        report.counts.pairs_occludable = matrix.stats.visibility.pairs_occludable;
+        report.counts.rays_cast = matrix.stats.visibility.rays_cast;
+        report.effects = Effects {
+            occlusion: effects.occlusion,
+            occlusion_reason: effects.reason.clone(),
+        };
         report.energy = Some(EnergyInfo {
             emitted: energy.emitted,
             absorbed: energy.absorbed,
@@ -331,6 +354,7 @@ fn options_json(
         "ff_segments": contour.segments,
         "ff_order": contour.order,
         "ff_auto_order": contour.auto_order,
+        "visibility_samples": cli.visibility_samples,
         "ff_near_ratio": contour.near_ratio,
         "output": cli.output.display().to_string(),
         "target": match cli.target {

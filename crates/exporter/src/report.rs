@@ -23,7 +23,7 @@ use std::path::Path;
 
 /// The version of this report's layout (2: `solver.condition`, `solver.iterations`, the
 /// `iterative` method and the `energy` object).
-pub const SCHEMA_VERSION: u32 = 2;
+pub const SCHEMA_VERSION: u32 = 3;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Report {
@@ -39,6 +39,9 @@ pub struct Report {
     pub solver: SolverInfo,
     /// Power balance of the solution; `None` until the caller sets it.
     pub energy: Option<EnergyInfo>,
+    /// The effects the scene called for (absent in older reports).
+    #[serde(default)]
+    pub effects: Effects,
     pub warnings: Vec<String>,
     pub polygons: Vec<PolygonEntry>,
     pub elements: Vec<ElementEntry>,
@@ -62,6 +65,25 @@ pub struct Counts {
     /// reports: 0).
     #[serde(default)]
     pub against_winding: usize,
+    /// Element pairs facing each other whose visibility was decided (absent in older
+    /// reports: 0).
+    #[serde(default)]
+    pub pairs_tested: u64,
+    /// Of those, pairs some polygon may come between: shadow rays were cast for them.
+    #[serde(default)]
+    pub pairs_occludable: u64,
+    /// Shadow rays cast.
+    #[serde(default)]
+    pub rays_cast: u64,
+}
+
+/// Which physical effects the scene called for, and why.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Effects {
+    /// Whether any element pair can be hidden by a third polygon (shadow rays needed).
+    pub occlusion: bool,
+    /// One sentence saying why.
+    pub occlusion_reason: String,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -173,6 +195,7 @@ impl Report {
             timings: BTreeMap::new(),
             solver,
             energy: None,
+            effects: Effects::default(),
             warnings: scene.warnings.clone(),
             polygons: Report::polygons_from(scene),
             elements: Report::elements_from(scene, mesh, radiosity)?,
@@ -253,6 +276,7 @@ impl Counts {
             faces_read: stats.faces_read,
             duplicates_dropped: stats.duplicates_dropped,
             against_winding: stats.against_winding,
+            ..Counts::default()
         }
     }
 }
