@@ -44,11 +44,12 @@ use sampling::Generator;
 
 /// Default shadow rays per occludable element pair (`--visibility-samples`): 17 × 17.
 ///
-/// Measured on 202 partly hidden element pairs of the Cornell box (100 mm elements) against a
-/// brute-force reference (`tests/cornell.rs`, `measure_estimators`): with 49 / 121 / 289 /
-/// 529 / 961 rays the rms error of the visible fraction is 0.030 / 0.016 / 0.0094 / 0.0076 /
-/// 0.0052, of F itself 11.7 / 6.1 / 4.2 / 3.5 / 2.2 %. 289 is past the knee, at about 50 µs
-/// per occludable pair on one core; unoccludable pairs cost no rays at all.
+/// Measured on ~200 partly hidden element pairs of the Cornell box (100 mm elements) against
+/// a brute-force reference (`tests/cornell.rs`, `measure_estimators`; two runs with different
+/// seeds): with 49 / 121 / 289 / 529 / 961 rays the rms error of the visible fraction is
+/// 0.030 / 0.016 / 0.0095 / 0.007 / 0.0052, of F itself 12–16 / 6–8 / 4–5 / 3–3.5 / 2–3 %.
+/// 289 is past the knee, at about 50 µs per occludable pair on one core; pairs that cannot be
+/// occluded cost no rays at all.
 pub const DEFAULT_SAMPLES: u32 = 289;
 
 /// Points closer than this × the scene size to a plane are on it.

@@ -106,7 +106,10 @@ fn a_larger_square_between_parallel_squares_hides_them_exactly() {
 /// The occluder covers x < 0.5 at z = 0.5: the point reflection through the pair's centre
 /// swaps hidden and visible point pairs and keeps the kernel, so exactly half of F is visible.
 /// A straight shadow edge through the middle of both elements is the hardest case for point
-/// sampling (fraction error ≈ 0.5 n^-1.5 with n² rays), so this uses the most rays, 31².
+/// sampling. Measured over 400 seeds, the fraction's rms error is 0.0094 with the default 289
+/// rays and 0.0046 with 961 (|error| > 1% of F for 30% and 3% of the seeds): so the 2% bound
+/// is asserted with 961 rays for the seed the pipeline would use, plus the mean and spread
+/// over 64 seeds at both counts.
 #[test]
 fn a_half_occluder_hides_half_the_form_factor() {
     let scene = squares_with(vec![rect_z([-1.0, 0.5], [-1.0, 2.0], 0.5, true, 2)]);
@@ -121,15 +124,24 @@ fn a_half_occluder_hides_half_the_form_factor() {
         (f - 0.199_824_5).abs() < 1e-6,
         "unit squares at distance 1: {f}"
     );
-    for seed in 0..8 {
-        let v = occluders.visibility(&a, &b, 1024, pair_seed(0, 1) + seed);
-        assert_eq!(v.rays, 961);
-        let error = (f * v.fraction - f / 2.0).abs() / (f / 2.0);
-        assert!(
-            error < 0.02,
-            "seed {seed}: fraction {} ({error:.4})",
-            v.fraction
-        );
+    let v = occluders.visibility(&a, &b, 1024, pair_seed(0, 1));
+    assert_eq!(v.rays, 961);
+    let error = (f * v.fraction - f / 2.0).abs() / (f / 2.0);
+    println!(
+        "961 rays, pair seed: fraction {} (F off by {:.2}%)",
+        v.fraction,
+        100.0 * error
+    );
+    assert!(error < 0.02);
+    for (samples, rms_bound) in [(DEFAULT_SAMPLES, 0.014), (1024, 0.007)] {
+        let errors: Vec<f64> = (0..64)
+            .map(|s| occluders.visibility(&a, &b, samples, 1000 + s).fraction - 0.5)
+            .collect();
+        let mean = errors.iter().sum::<f64>() / 64.0;
+        let rms = (errors.iter().map(|e| e * e).sum::<f64>() / 64.0).sqrt();
+        println!("{samples} samples, 64 seeds: mean error {mean:+.4}, rms {rms:.4}");
+        assert!(mean.abs() < 0.3 * rms_bound, "{samples}: biased, {mean}");
+        assert!(rms < rms_bound, "{samples}: {rms}");
     }
 }
 
