@@ -35,7 +35,13 @@ pub(crate) fn build(bake: &Bake) -> Result<Vec<NodeMesh>, ExportError> {
     check_bake(bake)?;
     let groups = group_elements(bake.scene, bake.mesh);
     let smoothed = match bake.shading {
-        Shading::Smooth => Some(bake.mesh.smooth(bake.radiosity)),
+        // The paper's smoothing, welded across edges shared by coplanar polygons of one
+        // material (a wall split into two polygons shows no seam), exactly as the lightmap's
+        // vertex values are, so the vertex and lightmap bakes agree everywhere.
+        Shading::Smooth => Some(
+            lightmap::welded_vertex_values(&bake.scene.polygons, bake.mesh, bake.radiosity)
+                .map_err(|e| invalid(e.to_string()))?,
+        ),
         Shading::Flat => None,
     };
     let mut node_meshes: Vec<NodeMesh> = Vec::new();

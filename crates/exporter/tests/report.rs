@@ -52,7 +52,7 @@ fn report() -> Report {
 fn report_holds_the_scene_and_results() {
     let fixture = fixture();
     let report = report();
-    assert_eq!(report.schema_version, 2);
+    assert_eq!(report.schema_version, 3);
     assert_eq!(report.input, "scenes/cube.gltf");
     assert_eq!(
         report.counts,
@@ -67,6 +67,9 @@ fn report_holds_the_scene_and_results() {
             faces_read: 12,
             duplicates_dropped: 2,
             against_winding: 3,
+            pairs_tested: 0,
+            pairs_occludable: 0,
+            rays_cast: 0,
         }
     );
     assert_eq!(report.warnings, fixture.scene.warnings);

@@ -59,7 +59,7 @@ fn room_b_sees_the_light_only_through_the_doorway() {
             let v = occluders.element_pair(&pairs, &m, light, e, DEFAULT_SAMPLES);
             counters.add(&v);
             // Light element → e, area-weighted: A_light F_light,e × visible fraction.
-            let share = ff.area_weighted(light, e).0 * v.fraction;
+            let share = ff.area_weighted(light, e).value * v.fraction;
             if name == "floor_a" {
                 to_a += share;
             } else {
