@@ -258,15 +258,6 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     }
 
     if !cli.quiet {
-        if let Some(built) = &lightmap {
-            eprintln!(
-                "bake: lightmap {}×{} texels, texel {:.6}, occupancy {:.1}%",
-                built.width,
-                built.height,
-                built.texel_size,
-                100.0 * built.stats.occupancy
-            );
-        }
         let r = solution.residual;
         // The hardest band's condition number and, for GMRES, its iteration count.
         let mut hardness = String::new();
@@ -282,6 +273,18 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         if method == SolverMethod::Iterative {
             let iterations = solution.iterations.iter().max().copied().unwrap_or(0);
             hardness += &format!(", {iterations} iterations");
+        }
+        if matrix.stats.visibility.rays_cast > 0 {
+            hardness += &format!(", {} shadow rays", matrix.stats.visibility.rays_cast);
+        }
+        if let Some(built) = &lightmap {
+            hardness += &format!(
+                ", lightmap {}×{} (texel {:.6}, {:.1}% occupied)",
+                built.width,
+                built.height,
+                built.texel_size,
+                100.0 * built.stats.occupancy
+            );
         }
         eprintln!(
             "bake: {} → {}: {} polygons, {n} elements, {} pairs integrated, residual {:.1e}/{:.1e}/{:.1e}{hardness}, {:.2} s",
