@@ -305,6 +305,10 @@ pub fn welded_vertex_values(
             mesh.elements.len()
         )));
     }
+    if polygons.is_empty() {
+        // Nothing to weld (and nothing to smooth): an empty bake.
+        return Ok(mesh.smooth(element_values));
+    }
     let fields = fields(polygons, mesh)?;
     Ok(smooth_and_weld(polygons, mesh, &fields, element_values).0)
 }
