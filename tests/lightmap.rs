@@ -1034,8 +1034,47 @@ fn readme_pictures() {
     }
     let solved = solve(&room);
     let lightmap = build(&solved, None);
+    let view = View {
+        eye: DVec3::new(2.75, 2.75, 12.5),
+        forward: -1.0,
+        exposure: 0.6,
+    };
+    render_with_lightmap(
+        &solved,
+        &lightmap,
+        view,
+        &images.join("cornell-like-render.png"),
+    );
+    // The Cornell box fixture (millimetres, open towards −z), seen from Cornell's camera.
+    let cornell = solve(&fixture("cornell.gltf"));
+    let lightmap = build(&cornell, None);
+    let atlas = lightmap::encode_png(&lightmap).expect("encode");
+    std::fs::write(images.join("cornell-atlas.png"), atlas.bytes).expect("write the atlas");
+    let view = View {
+        eye: DVec3::new(278.0, 273.0, -800.0),
+        forward: 1.0,
+        exposure: 1.0,
+    };
+    render_with_lightmap(
+        &cornell,
+        &lightmap,
+        view,
+        &images.join("cornell-render.png"),
+    );
+}
+
+/// A pinhole camera looking along ±z (`forward`), up +y.
+struct View {
+    eye: DVec3,
+    forward: f64,
+    exposure: f64,
+}
+
+/// Ray-casts the scene's polygons and shades each hit with ρ × (the lightmap sampled at its
+/// TEXCOORD_1) + e: what an engine shows from the lightmap bake.
+fn render_with_lightmap(solved: &Solved, lightmap: &lightmap::Lightmap, view: View, path: &Path) {
     let (width, height) = (360u32, 360u32);
-    let eye = DVec3::new(2.75, 2.75, 12.5);
+    let eye = view.eye;
     let focal = 1.0 / (20f64.to_radians()).tan();
     let polygons = &solved.scene.polygons;
     let mut pixels = Vec::with_capacity((width * height * 3) as usize);
@@ -1043,7 +1082,8 @@ fn readme_pictures() {
         for i in 0..width {
             let x = (2.0 * (i as f64 + 0.5) / width as f64) - 1.0;
             let y = 1.0 - (2.0 * (j as f64 + 0.5) / height as f64);
-            let d = DVec3::new(x, y, -focal).normalize();
+            // Looking along +z, image right is world −x (right-handed, up +y).
+            let d = DVec3::new(-view.forward * x, y, view.forward * focal).normalize();
             let mut hit: Option<(f64, usize, DVec3)> = None;
             for (p, polygon) in polygons.iter().enumerate() {
                 let n = polygon.normal;
@@ -1071,19 +1111,13 @@ fn readme_pictures() {
                 }
                 None => [0.0; 3],
             };
-            // Exposure 0.6, clamped, sRGB-encoded for the screen.
+            // Exposed, clamped, sRGB-encoded for the screen.
             for c in colour {
-                let v = lightmap::linear_to_srgb((0.6 * c).clamp(0.0, 1.0));
+                let v = lightmap::linear_to_srgb((view.exposure * c).clamp(0.0, 1.0));
                 pixels.push((v * 255.0).round() as u8);
             }
         }
     }
-    image::save_buffer(
-        images.join("cornell-like-render.png"),
-        &pixels,
-        width,
-        height,
-        image::ColorType::Rgb8,
-    )
-    .expect("write the render");
+    image::save_buffer(path, &pixels, width, height, image::ColorType::Rgb8)
+        .expect("write the render");
 }
