@@ -4,76 +4,9 @@ use bake_solver::{
     residual, solve_bounces, solve_direct, DenseMatrix, Operator, Solution, SolveError, BANDS,
 };
 
-/// splitmix64: a tiny deterministic generator for test data.
-struct Rng(u64);
+mod common;
 
-impl Rng {
-    fn next_f64(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
-/// Test data only: random positive rows with F_ii = 0, each row normalised to sum to 1
-/// (a closed scene: all light leaving an element lands somewhere).
-fn closed_form_factors(n: usize, seed: u64) -> Vec<f64> {
-    let mut rng = Rng(seed);
-    let mut f = vec![0.0; n * n];
-    for i in 0..n {
-        let row = &mut f[i * n..(i + 1) * n];
-        for (j, v) in row.iter_mut().enumerate() {
-            *v = if i == j { 0.0 } else { 0.05 + rng.next_f64() };
-        }
-        let sum: f64 = row.iter().sum();
-        row.iter_mut().for_each(|v| *v /= sum);
-    }
-    f
-}
-
-fn uniform(n: usize, v: [f64; BANDS]) -> Vec<[f64; BANDS]> {
-    vec![v; n]
-}
-
-/// Coloured reflectances in [0, 0.8] and emission on a few elements.
-fn coloured_scene(n: usize, seed: u64) -> (Vec<[f64; BANDS]>, Vec<[f64; BANDS]>) {
-    let mut rng = Rng(seed);
-    let rho = (0..n)
-        .map(|_| {
-            [
-                0.8 * rng.next_f64(),
-                0.8 * rng.next_f64(),
-                0.8 * rng.next_f64(),
-            ]
-        })
-        .collect();
-    let e = (0..n)
-        .map(|i| {
-            if i % 7 == 0 {
-                [1.0, 2.0, 0.5]
-            } else {
-                [0.0; 3]
-            }
-        })
-        .collect();
-    (rho, e)
-}
-
-fn max_rel_diff(a: &[[f64; BANDS]], b: &[[f64; BANDS]]) -> f64 {
-    let scale = b.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-    a.iter()
-        .flatten()
-        .zip(b.iter().flatten())
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
-        / scale
-}
-
-fn bits(s: &Solution) -> Vec<u64> {
-    s.b.iter().flatten().map(|v| v.to_bits()).collect()
-}
+use common::{bits, closed_form_factors, coloured_scene, max_rel_diff, uniform};
 
 #[test]
 fn two_by_two_solved_by_hand() {
