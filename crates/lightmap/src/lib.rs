@@ -157,6 +157,9 @@ pub fn build(
             options.texel_size
         )));
     }
+    if polygons.is_empty() {
+        return Err(LightmapError::InvalidData("no polygons to lay out".into()));
+    }
     if options.max_size < 16 {
         return Err(LightmapError::InvalidOptions(format!(
             "the atlas must be at least 16 texels wide, got {}",
@@ -260,7 +263,7 @@ pub fn build(
 }
 
 fn fields(polygons: &[Polygon], mesh: &ElementMesh) -> Result<Vec<Field>, LightmapError> {
-    if polygons.is_empty() || mesh.patches.len() != polygons.len() {
+    if mesh.patches.len() != polygons.len() {
         return Err(LightmapError::InvalidData(format!(
             "{} polygons, {} patches",
             polygons.len(),
@@ -304,10 +307,6 @@ pub fn welded_vertex_values(
             element_values.len(),
             mesh.elements.len()
         )));
-    }
-    if polygons.is_empty() {
-        // Nothing to weld (and nothing to smooth): an empty bake.
-        return Ok(mesh.smooth(element_values));
     }
     let fields = fields(polygons, mesh)?;
     Ok(smooth_and_weld(polygons, mesh, &fields, element_values).0)
