@@ -17,9 +17,12 @@
 //! back-facing and coplanar pairs are exactly 0; rows are never renormalised.
 
 mod contour;
+mod estimate;
 mod polygon;
 
 pub use contour::{ContourOptions, MAX_ORDER};
+use estimate::PairGeometry;
+pub use estimate::{point_to_polygon, Estimator, TriangleRule, MIN_TOLERANCE};
 use glam::DVec3;
 use mesher::ElementMesh;
 use polygon::Poly;
@@ -54,8 +57,11 @@ pub struct Stats {
     pub pairs_integrated: u64,
     /// Of those, pairs that needed clipping.
     pub pairs_clipped: u64,
-    /// Kernel evaluations (ln r, or one closed-form segment integral).
+    /// Kernel evaluations: ln r or one closed-form segment integral (contour), one edge term
+    /// (point-to-polygon), one centroid kernel (point-to-point).
     pub evaluations: u64,
+    /// Integrated pairs by the estimator that computed them.
+    pub pairs_by_method: MethodCounts,
     /// Occlusion work over the facing pairs: pairs tested, pairs occludable, rays cast.
     pub visibility: Counters,
 }
@@ -64,7 +70,24 @@ pub struct Stats {
 pub struct FormFactors<'a> {
     mesh: &'a ElementMesh,
     options: ContourOptions,
+    estimator: Estimator,
     occlusion: Option<Occlusion<'a>>,
+}
+
+/// Which estimator computed a pair.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    Contour,
+    PointPolygon,
+    PointPoint,
+}
+
+/// Pairs per [`Method`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MethodCounts {
+    pub contour: u64,
+    pub point_polygon: u64,
+    pub point_point: u64,
 }
 
 impl<'a> FormFactors<'a> {
@@ -73,8 +96,15 @@ impl<'a> FormFactors<'a> {
         FormFactors {
             mesh,
             options,
+            estimator: Estimator::Contour,
             occlusion: None,
         }
+    }
+
+    /// Compute facing pairs by `estimator` instead of the contour integral alone.
+    pub fn with_estimator(mut self, estimator: Estimator) -> Self {
+        self.estimator = estimator;
+        self
     }
 
     /// Hidden surfaces: every facing pair that some polygon can come between gets the exact
@@ -107,17 +137,70 @@ impl<'a> FormFactors<'a> {
             None => Visibility::UNOCCLUDED,
         };
         // Fully hidden pairs are exactly 0: no integral needed.
-        let (value, evaluations) = if visibility.fraction == 0.0 {
-            (0.0, 0)
+        let (value, evaluations, method) = if visibility.fraction == 0.0 {
+            (0.0, 0, None)
         } else {
-            let (g, evaluations) = self.contour(&facing);
-            (g * visibility.fraction, evaluations)
+            let (g, evaluations, method) = self.estimate(i, j, &facing);
+            (g * visibility.fraction, evaluations, Some(method))
         };
         PairResult {
             value,
             kind: facing.kind,
             evaluations,
+            method,
             visibility,
+        }
+    }
+
+    /// `A_i F_ij` of a facing pair by the configured estimator.
+    fn estimate(&self, i: usize, j: usize, f: &Facing) -> (f64, u64, Method) {
+        let normals = [self.mesh.elements[i].normal, self.mesh.elements[j].normal];
+        let mut evaluations = 0;
+        let scale = f.unit * f.unit;
+        let point_polygon = |rule, evaluations: &mut u64| {
+            let g = PairGeometry::new(&f.a, normals[0], &f.b, normals[1]);
+            estimate::point_polygon(&g, [&f.a, &f.b], normals, rule, evaluations) * scale
+        };
+        match self.estimator {
+            Estimator::Contour => {
+                let (g, e) = self.contour(f);
+                (g, e, Method::Contour)
+            }
+            Estimator::PointPolygon(rule) => {
+                let g = point_polygon(rule, &mut evaluations);
+                (g, evaluations, Method::PointPolygon)
+            }
+            Estimator::PointPoint => {
+                let g = PairGeometry::new(&f.a, normals[0], &f.b, normals[1]);
+                let v = estimate::point_point(&g, normals[0], normals[1], &mut evaluations);
+                (v * scale, evaluations, Method::PointPoint)
+            }
+            Estimator::Auto { tolerance } => {
+                if tolerance < MIN_TOLERANCE {
+                    let (v, e) = self.contour(f);
+                    return (v, e, Method::Contour);
+                }
+                let g = PairGeometry::new(&f.a, normals[0], &f.b, normals[1]);
+                if g.point_point_bound() <= tolerance {
+                    let v = estimate::point_point(&g, normals[0], normals[1], &mut evaluations);
+                    return (v * scale, evaluations, Method::PointPoint);
+                }
+                // Cheapest rule first (cost grows with the points per triangle).
+                for rule in TriangleRule::ALL {
+                    if g.point_polygon_bound(rule) <= tolerance {
+                        let v = estimate::point_polygon(
+                            &g,
+                            [&f.a, &f.b],
+                            normals,
+                            rule,
+                            &mut evaluations,
+                        );
+                        return (v * scale, evaluations, Method::PointPolygon);
+                    }
+                }
+                let (v, e) = self.contour(f);
+                (v, e, Method::Contour)
+            }
         }
     }
 
@@ -248,6 +331,12 @@ impl Stats {
     fn count(&mut self, pair: &PairResult) {
         self.pairs += 1;
         self.evaluations += pair.evaluations;
+        match pair.method {
+            Some(Method::Contour) => self.pairs_by_method.contour += 1,
+            Some(Method::PointPolygon) => self.pairs_by_method.point_polygon += 1,
+            Some(Method::PointPoint) => self.pairs_by_method.point_point += 1,
+            None => {}
+        }
         if pair.kind != PairKind::Culled {
             self.visibility.add(&pair.visibility);
         }
@@ -266,6 +355,9 @@ impl Stats {
         self.pairs_integrated += other.pairs_integrated;
         self.pairs_clipped += other.pairs_clipped;
         self.evaluations += other.evaluations;
+        self.pairs_by_method.contour += other.pairs_by_method.contour;
+        self.pairs_by_method.point_polygon += other.pairs_by_method.point_polygon;
+        self.pairs_by_method.point_point += other.pairs_by_method.point_point;
         self.visibility = self.visibility.merge(other.visibility);
     }
 }
@@ -276,8 +368,10 @@ pub struct PairResult {
     /// `A_i F_ij` (visible part).
     pub value: f64,
     pub kind: PairKind,
-    /// Kernel evaluations of the contour integral.
+    /// Kernel evaluations of the estimator.
     pub evaluations: u64,
+    /// The estimator that computed the value (`None`: culled or fully hidden).
+    pub method: Option<Method>,
     /// What the occlusion test decided ([`Visibility::UNOCCLUDED`] without occlusion).
     pub visibility: Visibility,
 }
@@ -287,6 +381,7 @@ impl PairResult {
         value: 0.0,
         kind: PairKind::Culled,
         evaluations: 0,
+        method: None,
         visibility: Visibility::UNOCCLUDED,
     };
 }
@@ -338,6 +433,20 @@ impl DenseFormFactors {
 pub fn polygon_pair(a: &[DVec3], b: &[DVec3], options: &ContourOptions) -> f64 {
     let mesh = polygon::two_element_mesh(a, b);
     FormFactors::new(&mesh, *options).pair(0, 1)
+}
+
+/// [`polygon_pair`] by any [`Estimator`]: the pair's result (`value` = `A_a F_ab`), with the
+/// estimator it used and its kernel evaluations.
+pub fn polygon_pair_with(
+    a: &[DVec3],
+    b: &[DVec3],
+    options: &ContourOptions,
+    estimator: Estimator,
+) -> PairResult {
+    let mesh = polygon::two_element_mesh(a, b);
+    FormFactors::new(&mesh, *options)
+        .with_estimator(estimator)
+        .area_weighted(0, 1)
 }
 
 /// Bound on `|Σ_j F_ij − 1|` for an element inside a closed enclosure, with the default
