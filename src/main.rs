@@ -4,6 +4,7 @@
 mod pipeline;
 mod preview_cli;
 
+use clap::builder::TypedValueParser;
 use clap::{CommandFactory, Parser, ValueEnum};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -31,13 +32,20 @@ pub struct Cli {
     /// Output scene: .gltf (writes OUT's stem + .bin beside it) or .glb. Written atomically.
     pub output: PathBuf,
 
+    /// The accuracy–time trade in one knob: element size, form-factor estimator and
+    /// tolerance, and shadow rays, as measured in docs/accuracy.md. `draft`: elements of
+    /// diagonal/8, --ff-tolerance 1e-2, 49 rays; `normal`: diagonal/16, 1e-3, 289 rays;
+    /// `high`: diagonal/32, 1e-5, 961 rays. Options given explicitly override the preset.
+    #[arg(long, value_enum, default_value_t = QualityArg::Normal)]
+    pub quality: QualityArg,
+
     /// Subdivide every quad into N×N elements and every triangle into N² elements.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024),
           conflicts_with = "max_element_size")]
     pub subdiv: Option<u32>,
     /// Subdivide so that no element edge is longer than L (world units). Default when neither
-    /// this nor --subdiv is given: the scene's bounding-box diagonal / 16 (the unit cube gets
-    /// 10×10 elements per wall).
+    /// this nor --subdiv is given: the scene's bounding-box diagonal / 16 with --quality
+    /// normal (the unit cube gets 10×10 elements per wall), / 8 draft, / 32 high.
     #[arg(long, value_name = "L", allow_negative_numbers = true)]
     pub max_element_size: Option<f64>,
 
@@ -81,6 +89,24 @@ pub struct Cli {
     )]
     pub exposure: f64,
 
+    /// How to compute each element pair's form factor. `contour`: the contour integral (eq. 13),
+    /// exact to ~1e-15 with the default options. `point-polygon`: the closed form from
+    /// points of the smaller element (--ff-points per triangle) to the other element.
+    /// `point-point`: cosθi cosθj Aj / (π r²) at the centroids. `auto` (the presets' choice):
+    /// per pair, the cheapest of those whose measured error bound meets --ff-tolerance.
+    #[arg(long, value_enum, value_name = "E")]
+    pub ff_estimator: Option<EstimatorArg>,
+    /// `auto` estimator: the largest relative error allowed per element pair, in (0, 1)
+    /// (implies --ff-estimator auto) [default: from --quality]. Below 1e-8 every pair gets
+    /// the contour integral.
+    #[arg(long, value_name = "T", value_parser = parse_tolerance)]
+    pub ff_tolerance: Option<f64>,
+    /// `point-polygon` estimator: quadrature points per triangle of the element (a quad is
+    /// two triangles): 1 (centroid), 3 (degree 2) or 7 (degree 5).
+    #[arg(long, value_name = "N", default_value_t = 3,
+          value_parser = clap::builder::PossibleValuesParser::new(["1", "3", "7"])
+              .map(|s| s.parse::<u32>().unwrap_or(3)))]
+    pub ff_points: u32,
     /// Contour integral: cut each element edge into this many equal segments.
     #[arg(long, value_name = "N", default_value_t = 1,
           value_parser = clap::value_parser!(u32).range(1..=64))]
@@ -101,10 +127,10 @@ pub struct Cli {
     /// (rounded to a square of strata, 1…1024). Pairs nothing can come between (every pair of
     /// a convex enclosure such as the paper's cube) keep the exact form factor and cast no
     /// ray. Measured on the Cornell box: 49 / 121 / 289 / 961 rays give an rms error of the
-    /// visible fraction of 0.030 / 0.016 / 0.009 / 0.005.
-    #[arg(long, value_name = "K", default_value_t = form_factor::visibility::DEFAULT_SAMPLES,
-          value_parser = clap::value_parser!(u32).range(1..=1024))]
-    pub visibility_samples: u32,
+    /// visible fraction of 0.030 / 0.016 / 0.009 / 0.005. [default: from --quality: 49,
+    /// 289, 961]
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub visibility_samples: Option<u32>,
 
     /// What to write. `vertex`: OUT holds the element mesh with the radiosity in COLOR_0
     /// (unlit). `lightmap`: OUT holds the input's polygons (not subdivided) with lit materials,
@@ -132,6 +158,31 @@ pub struct Cli {
     /// Print nothing but errors (no warnings, progress or summary).
     #[arg(long, short)]
     pub quiet: bool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum QualityArg {
+    Draft,
+    Normal,
+    High,
+}
+
+impl QualityArg {
+    pub fn quality(self) -> presets::Quality {
+        match self {
+            QualityArg::Draft => presets::Quality::Draft,
+            QualityArg::Normal => presets::Quality::Normal,
+            QualityArg::High => presets::Quality::High,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum EstimatorArg {
+    Contour,
+    PointPolygon,
+    PointPoint,
+    Auto,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -186,6 +237,12 @@ fn main() -> ExitCode {
 /// `--tolerance` and `--max-iterations` tune the iterative solver only: a usage error otherwise
 /// (rather than silently ignoring them).
 fn check_solver_options(cli: Cli) -> Result<Cli, clap::Error> {
+    if cli.ff_tolerance.is_some() && cli.ff_estimator.is_some_and(|e| e != EstimatorArg::Auto) {
+        return Err(Cli::command().error(
+            clap::error::ErrorKind::ArgumentConflict,
+            "--ff-tolerance applies only to --ff-estimator auto",
+        ));
+    }
     if cli.solver != SolverKind::Iterative {
         for (given, flag) in [
             (cli.tolerance.is_some(), "--tolerance"),

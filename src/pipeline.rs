@@ -1,9 +1,9 @@
 //! Wires the stages together, times them, reports progress, and maps failures to exit codes.
 
-use crate::{Cli, Shading, SolverKind, Target};
+use crate::{Cli, EstimatorArg, Shading, SolverKind, Target};
 use anyhow::{anyhow, Context};
 use exporter::report::{self, Effects, EnergyInfo, Report, SolverInfo, SolverMethod};
-use form_factor::{ContourOptions, FormFactors, Occluders, Occlusion};
+use form_factor::{ContourOptions, Estimator, FormFactors, Occluders, Occlusion, TriangleRule};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use mesher::Subdivision;
 use std::collections::BTreeMap;
@@ -80,10 +80,11 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     let mut warnings = scene.warnings.clone();
 
     // 2. Mesh.
+    let preset = cli.quality.quality().preset();
     let subdivision = match (cli.subdiv, cli.max_element_size) {
         (Some(n), _) => Subdivision::Count(n),
         (None, Some(l)) => Subdivision::MaxSize(l),
-        (None, None) => Subdivision::MaxSize(mesher::default_max_element_size(&scene.polygons)),
+        (None, None) => Subdivision::MaxSize(preset.max_element_size(&scene.polygons)),
     };
     let mesh = mesher::mesh(&scene.polygons, subdivision)
         .with_context(|| format!("{}: cannot subdivide", input.display()))
@@ -113,12 +114,14 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     let occludable = occluders.occludable_pairs();
     let effects = occludable.effects();
     stage("visibility_setup", &mut lap);
-    let mut form_factors = FormFactors::new(&mesh, contour);
+    let estimator = estimator(cli, preset);
+    let samples = cli.visibility_samples.unwrap_or(preset.visibility_samples);
+    let mut form_factors = FormFactors::new(&mesh, contour).with_estimator(estimator);
     if effects.occlusion {
         form_factors = form_factors.with_occlusion(Occlusion {
             occluders: &occluders,
             pairs: &occludable,
-            samples: cli.visibility_samples,
+            samples,
         });
     }
     let bar = progress_bar(cli.quiet, n as u64, "form factors");
@@ -140,7 +143,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     }
     let f = solver::DenseMatrix::new(n, &matrix.data)
         .map_err(|err| internal(err.into()))?
-        .with_accuracy(form_factor::ROW_SUM_ACCURACY);
+        .with_accuracy(estimator.row_sum_accuracy());
     let method = solver_method(cli);
     let solution = match method {
         SolverMethod::Direct => solver::solve_direct(&f, &rho, &e),
@@ -233,11 +236,15 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         let mut report = Report::new(input, &scene, &mesh, &solution.b, info)
             .with_context(|| format!("cannot build the report {}", path.display()))
             .map_err(internal)?;
-        report.options = options_json(cli, subdivision, contour, &scene);
+        report.options = options_json(cli, subdivision, contour, estimator, samples, &scene);
         report.counts.pairs_evaluated = matrix.stats.pairs_integrated;
         report.counts.pairs_tested = matrix.stats.visibility.pairs_tested;
         report.counts.pairs_occludable = matrix.stats.visibility.pairs_occludable;
         report.counts.rays_cast = matrix.stats.visibility.rays_cast;
+        report.counts.kernel_evaluations = matrix.stats.evaluations;
+        report.counts.pairs_contour = matrix.stats.pairs_by_method.contour;
+        report.counts.pairs_point_polygon = matrix.stats.pairs_by_method.point_polygon;
+        report.counts.pairs_point_point = matrix.stats.pairs_by_method.point_point;
         report.effects = Effects {
             occlusion: effects.occlusion,
             occlusion_reason: effects.reason.clone(),
@@ -334,13 +341,41 @@ fn progress_bar(quiet: bool, len: u64, what: &str) -> ProgressBar {
     bar
 }
 
+/// The form-factor estimator: explicit options over the preset's.
+fn estimator(cli: &Cli, preset: presets::Preset) -> Estimator {
+    let preset_tolerance = match preset.estimator {
+        Estimator::Auto { tolerance } => tolerance,
+        _ => form_factor::MIN_TOLERANCE,
+    };
+    match (cli.ff_estimator, cli.ff_tolerance) {
+        (None, None) => preset.estimator,
+        (None | Some(EstimatorArg::Auto), Some(tolerance)) => Estimator::Auto { tolerance },
+        (Some(EstimatorArg::Auto), None) => Estimator::Auto {
+            tolerance: preset_tolerance,
+        },
+        (Some(EstimatorArg::Contour), _) => Estimator::Contour,
+        (Some(EstimatorArg::PointPoint), _) => Estimator::PointPoint,
+        (Some(EstimatorArg::PointPolygon), _) => Estimator::PointPolygon(
+            TriangleRule::from_points(cli.ff_points).unwrap_or(TriangleRule::Three),
+        ),
+    }
+}
+
 /// The options as resolved for this bake (defaults filled in), for the report.
 fn options_json(
     cli: &Cli,
     subdivision: Subdivision,
     contour: ContourOptions,
+    estimator: Estimator,
+    samples: u32,
     scene: &importer::Scene,
 ) -> serde_json::Value {
+    let (estimator, ff_tolerance, ff_points) = match estimator {
+        Estimator::Contour => ("contour", None, None),
+        Estimator::PointPolygon(rule) => ("point-polygon", None, Some(rule.points())),
+        Estimator::PointPoint => ("point-point", None, None),
+        Estimator::Auto { tolerance } => ("auto", Some(tolerance), None),
+    };
     let subdivision = match subdivision {
         Subdivision::Count(n) => serde_json::json!({ "subdiv": n }),
         Subdivision::MaxSize(l) => serde_json::json!({ "max_element_size": l }),
@@ -357,7 +392,11 @@ fn options_json(
         "ff_segments": contour.segments,
         "ff_order": contour.order,
         "ff_auto_order": contour.auto_order,
-        "visibility_samples": cli.visibility_samples,
+        "quality": cli.quality.quality().name(),
+        "ff_estimator": estimator,
+        "ff_tolerance": ff_tolerance,
+        "ff_points": ff_points,
+        "visibility_samples": samples,
         "ff_near_ratio": contour.near_ratio,
         "output": cli.output.display().to_string(),
         "target": match cli.target {

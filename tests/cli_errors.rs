@@ -350,6 +350,15 @@ fn usage_errors_exit_2() {
             "cannot be used with",
         ),
         (&["--shading", "glossy"][..], "glossy"),
+        (&["--quality", "ultra"][..], "ultra"),
+        (&["--ff-estimator", "monte-carlo"][..], "monte-carlo"),
+        (&["--ff-points", "4"][..], "--ff-points"),
+        (&["--ff-tolerance", "0"][..], "--ff-tolerance"),
+        (&["--ff-tolerance", "1.5"][..], "--ff-tolerance"),
+        (
+            &["--ff-estimator", "contour", "--ff-tolerance", "1e-3"][..],
+            "applies only to --ff-estimator auto",
+        ),
     ] {
         let (run, out) = usage_run(args);
         assert_eq!(run.code, Some(USAGE), "{args:?}: {run:#?}");

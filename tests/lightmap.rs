@@ -173,7 +173,8 @@ struct Solved {
 fn solve(path: &Path) -> Solved {
     use solver::Operator;
     let scene = importer::load(path).expect("load the scene");
-    let size = mesher::default_max_element_size(&scene.polygons);
+    let preset = presets::Quality::Normal.preset();
+    let size = preset.max_element_size(&scene.polygons);
     let mesh = mesher::mesh(&scene.polygons, mesher::Subdivision::MaxSize(size)).expect("mesh");
     let contour = form_factor::ContourOptions {
         segments: 1,
@@ -187,9 +188,10 @@ fn solve(path: &Path) -> Solved {
     let occlusion = form_factor::Occlusion {
         occluders: &occluders,
         pairs: &pairs,
-        samples: form_factor::visibility::DEFAULT_SAMPLES,
+        samples: preset.visibility_samples,
     };
     let matrix = form_factor::FormFactors::new(&mesh, contour)
+        .with_estimator(preset.estimator)
         .with_occlusion(occlusion)
         .dense();
     let (rho, e): (Vec<[f64; 3]>, Vec<[f64; 3]>) = mesh

@@ -12,7 +12,9 @@ fn fixture(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// Runs `bake input out.glb --report r.json args...` and returns the report.
+/// Runs `bake input out.glb --report r.json --ff-estimator contour args...` and returns the
+/// report. These tests check the physics to ~1e-10, so they use the exact form factors (the
+/// default `auto` estimator keeps each pair within its 1e-3 tolerance; see tests/quality.rs).
 fn bake(input: &Path, args: &[&str]) -> Report {
     let dir = tempfile::tempdir().expect("tempdir");
     let (out, report) = (dir.path().join("out.glb"), dir.path().join("report.json"));
@@ -22,6 +24,7 @@ fn bake(input: &Path, args: &[&str]) -> Report {
         .arg("--report")
         .arg(&report)
         .arg("--quiet")
+        .args(["--ff-estimator", "contour"])
         .args(args)
         .output()
         .expect("run bake");

@@ -14,13 +14,15 @@ fn fixture(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// Runs `bake input dir/out.glb --report dir/report.json args...`.
+/// Runs `bake input dir/out.glb --report dir/report.json --ff-estimator contour args...`
+/// (exact form factors: these tests hold the solver to ~1e-12).
 fn run(input: &Path, dir: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_bake"))
         .arg(input)
         .arg(dir.join("out.glb"))
         .arg("--report")
         .arg(dir.join("report.json"))
+        .args(["--ff-estimator", "contour"])
         .args(args)
         .output()
         .expect("run bake")

@@ -75,6 +75,17 @@ pub struct Counts {
     /// Shadow rays cast.
     #[serde(default)]
     pub rays_cast: u64,
+    /// Form-factor kernel evaluations (ln r terms of the contour integral, edge terms of
+    /// point-to-polygon, centroid kernels of point-to-point; absent in older reports: 0).
+    #[serde(default)]
+    pub kernel_evaluations: u64,
+    /// Integrated pairs computed by the contour integral, point-to-polygon and point-to-point.
+    #[serde(default)]
+    pub pairs_contour: u64,
+    #[serde(default)]
+    pub pairs_point_polygon: u64,
+    #[serde(default)]
+    pub pairs_point_point: u64,
 }
 
 /// Which physical effects the scene called for, and why.

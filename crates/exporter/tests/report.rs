@@ -70,6 +70,10 @@ fn report_holds_the_scene_and_results() {
             pairs_tested: 0,
             pairs_occludable: 0,
             rays_cast: 0,
+            kernel_evaluations: 0,
+            pairs_contour: 0,
+            pairs_point_polygon: 0,
+            pairs_point_point: 0,
         }
     );
     assert_eq!(report.warnings, fixture.scene.warnings);

@@ -52,6 +52,22 @@ pub enum Estimator {
     Auto { tolerance: f64 },
 }
 
+impl Estimator {
+    /// Bound on `|Σ_j F_ij − 1|` inside a closed enclosure that the solver may assume:
+    /// [`crate::ROW_SUM_ACCURACY`] for the contour integral, the tolerance for
+    /// [`Estimator::Auto`] (each F_ij within it relatively). The fixed cheap estimators have no
+    /// bound (point-to-point is off by tens of percent between touching elements): 0.1 is
+    /// assumed for them, so the solver refuses scenes an error that size could ruin.
+    pub fn row_sum_accuracy(&self) -> f64 {
+        match *self {
+            Estimator::Contour => crate::ROW_SUM_ACCURACY,
+            Estimator::Auto { tolerance } if tolerance < MIN_TOLERANCE => crate::ROW_SUM_ACCURACY,
+            Estimator::Auto { tolerance } => tolerance.max(crate::ROW_SUM_ACCURACY),
+            Estimator::PointPolygon(_) | Estimator::PointPoint => 0.1,
+        }
+    }
+}
+
 /// Quadrature rule on each triangle of an element's fan (a quad is two triangles).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum TriangleRule {

@@ -1,9 +1,10 @@
-//! Times `solve_direct` (three coloured bands: three LU factorisations) for n = 500, 1000, 2000.
+//! Times `solve_direct` (three coloured bands: three LU factorisations), restarted GMRES to
+//! 1e-12 and 8 bounces, for n = 500, 1000, 2000: the solver's cost per N.
 
 use std::hint::black_box;
 use std::time::Duration;
 
-use bake_solver::{solve_direct, DenseMatrix};
+use bake_solver::{solve_bounces, solve_direct, solve_iterative, DenseMatrix, IterativeOptions};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, SamplingMode};
 
 /// Deterministic bench data: positive rows with F_ii = 0 summing to 0.9 (a slightly open scene),
@@ -53,5 +54,27 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+/// The O(n²)-per-iteration solvers on the same systems.
+fn iterative(c: &mut Criterion) {
+    let mut group = c.benchmark_group("solve_iterative_rgb");
+    group
+        .sample_size(10)
+        .sampling_mode(SamplingMode::Flat)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2));
+    for n in [500, 1000, 2000] {
+        let (f, rho, e) = scene(n);
+        let f = DenseMatrix::new(n, &f).expect("bench matrix is n x n");
+        let options = IterativeOptions::default();
+        group.bench_with_input(BenchmarkId::new("gmres", n), &n, |b, _| {
+            b.iter(|| solve_iterative(black_box(&f), black_box(&rho), black_box(&e), &options))
+        });
+        group.bench_with_input(BenchmarkId::new("bounces_8", n), &n, |b, _| {
+            b.iter(|| solve_bounces(black_box(&f), black_box(&rho), black_box(&e), 8))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench, iterative);
 criterion_main!(benches);

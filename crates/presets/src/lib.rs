@@ -1,0 +1,89 @@
+//! `--quality draft|normal|high`: one knob for the accuracy–time trade. Each preset fixes the
+//! element size (relative to the scene), the form-factor estimator and its tolerance, and the
+//! shadow rays per occludable pair; explicit options override it. The values were chosen from
+//! the Pareto front measured by `tools/accuracy-report` on the paper's cube and the Cornell
+//! box; `docs/accuracy.md` lists each preset's error and time there.
+
+use form_factor::Estimator;
+use importer::Polygon;
+
+/// The presets, from cheapest to most accurate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Quality {
+    Draft,
+    Normal,
+    High,
+}
+
+impl Quality {
+    pub const ALL: [Quality; 3] = [Quality::Draft, Quality::Normal, Quality::High];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Quality::Draft => "draft",
+            Quality::Normal => "normal",
+            Quality::High => "high",
+        }
+    }
+
+    /// The knob values of this preset.
+    pub fn preset(self) -> Preset {
+        match self {
+            Quality::Draft => Preset {
+                elements_per_diagonal: 8.0,
+                estimator: Estimator::Auto { tolerance: 1e-2 },
+                visibility_samples: 49,
+            },
+            Quality::Normal => Preset {
+                elements_per_diagonal: 16.0,
+                estimator: Estimator::Auto { tolerance: 1e-3 },
+                visibility_samples: 289,
+            },
+            Quality::High => Preset {
+                elements_per_diagonal: 32.0,
+                estimator: Estimator::Auto { tolerance: 1e-5 },
+                visibility_samples: 961,
+            },
+        }
+    }
+}
+
+/// The knob values one preset sets.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Preset {
+    /// Elements no longer than the scene's bounding-box diagonal divided by this.
+    pub elements_per_diagonal: f64,
+    /// Form-factor estimator (and its tolerance).
+    pub estimator: Estimator,
+    /// Shadow rays per element pair that a polygon may come between.
+    pub visibility_samples: u32,
+}
+
+impl Preset {
+    /// The largest element edge for `polygons` (world units).
+    pub fn max_element_size(&self, polygons: &[Polygon]) -> f64 {
+        let (lo, hi) = importer::bounds(polygons);
+        (hi - lo).length() / self.elements_per_diagonal
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each preset is at least as fine as the one before it in every knob.
+    #[test]
+    fn presets_are_ordered_knob_by_knob() {
+        let tolerance = |p: Preset| match p.estimator {
+            Estimator::Auto { tolerance } => tolerance,
+            Estimator::Contour => 0.0,
+            _ => f64::INFINITY,
+        };
+        for pair in Quality::ALL.windows(2) {
+            let (a, b) = (pair[0].preset(), pair[1].preset());
+            assert!(a.elements_per_diagonal < b.elements_per_diagonal);
+            assert!(tolerance(a) > tolerance(b));
+            assert!(a.visibility_samples < b.visibility_samples);
+        }
+    }
+}
