@@ -5,21 +5,11 @@
 
 use bake_form_factor::{ContourOptions, Estimator, FormFactors, TriangleRule};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use glam::DVec3;
 use importer::{Origin, Polygon, Side};
 use mesher::{mesh, Subdivision};
 
 fn cube() -> Vec<Polygon> {
-    let v = DVec3::new;
-    let walls = [
-        [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)],
-        [v(0., 0., 1.), v(0., 1., 1.), v(1., 1., 1.), v(1., 0., 1.)],
-        [v(0., 0., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., 0., 1.)],
-        [v(1., 0., 0.), v(1., 0., 1.), v(1., 1., 1.), v(1., 1., 0.)],
-        [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
-        [v(0., 1., 0.), v(1., 1., 0.), v(1., 1., 1.), v(0., 1., 1.)],
-    ];
-    walls
+    reference::unit_cube_walls()
         .iter()
         .enumerate()
         .map(|(k, c)| Polygon {

@@ -5,36 +5,10 @@ use bake_form_factor::{polygon_pair, ContourOptions, FormFactors};
 use glam::DVec3;
 use importer::{Origin, Polygon, Side};
 use mesher::{mesh, Subdivision};
-use std::f64::consts::PI;
+use reference::{parallel_opposed, perpendicular_shared_edge};
 
 fn v(x: f64, y: f64, z: f64) -> DVec3 {
     DVec3::new(x, y, z)
-}
-
-/// Directly opposed parallel rectangles a × b, distance c (Howell C-11).
-fn parallel_opposed(a: f64, b: f64, c: f64) -> f64 {
-    let (x, y) = (a / c, b / c);
-    let (x1, y1) = ((1.0 + x * x).sqrt(), (1.0 + y * y).sqrt());
-    2.0 / (PI * x * y)
-        * (((1.0 + x * x) * (1.0 + y * y) / (1.0 + x * x + y * y))
-            .sqrt()
-            .ln()
-            + x * y1 * (x / y1).atan()
-            + y * x1 * (y / x1).atan()
-            - x * x.atan()
-            - y * y.atan())
-}
-
-/// Perpendicular rectangles sharing an edge of length l; i has width w, j height h (Howell C-14).
-fn perpendicular_shared_edge(l: f64, w: f64, h: f64) -> f64 {
-    let (hh, ww) = (h / l, w / l);
-    let (h2, w2) = (hh * hh, ww * ww);
-    let s = (h2 + w2).sqrt();
-    let log = ((1.0 + w2) * (1.0 + h2) / (1.0 + w2 + h2)).ln()
-        + w2 * (w2 * (1.0 + w2 + h2) / ((1.0 + w2) * (w2 + h2))).ln()
-        + h2 * (h2 * (1.0 + h2 + w2) / ((1.0 + h2) * (h2 + w2))).ln();
-    (ww * (1.0 / ww).atan() + hh * (1.0 / hh).atan() - s * (1.0 / s).atan() + 0.25 * log)
-        / (PI * ww)
 }
 
 fn floor(w: f64, l: f64) -> Vec<DVec3> {

@@ -140,15 +140,7 @@ fn polygon(vertices: Vec<DVec3>, k: usize) -> Polygon {
 /// The six inward faces of the parallelepiped `corner + M [0, 1]³` (det M > 0): parallelogram
 /// walls, a convex enclosure in which nothing is occluded.
 fn parallelepiped(corner: DVec3, m: DMat3) -> Vec<Polygon> {
-    let p = |x: f64, y: f64, z: f64| corner + m * DVec3::new(x, y, z);
-    let faces = [
-        [p(0., 0., 0.), p(0., 1., 0.), p(1., 1., 0.), p(1., 0., 0.)],
-        [p(0., 0., 1.), p(1., 0., 1.), p(1., 1., 1.), p(0., 1., 1.)],
-        [p(0., 0., 0.), p(0., 0., 1.), p(0., 1., 1.), p(0., 1., 0.)],
-        [p(1., 0., 0.), p(1., 1., 0.), p(1., 1., 1.), p(1., 0., 1.)],
-        [p(0., 0., 0.), p(1., 0., 0.), p(1., 0., 1.), p(0., 0., 1.)],
-        [p(0., 1., 0.), p(0., 1., 1.), p(1., 1., 1.), p(1., 1., 0.)],
-    ];
+    let faces = reference::unit_cube_walls().map(|f| f.map(|q| corner + m * q));
     faces
         .iter()
         .enumerate()

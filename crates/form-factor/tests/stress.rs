@@ -368,16 +368,7 @@ fn solve_radiosity(f: &[f64], n: usize, rho: &[f64], e: &[f64]) -> Vec<f64> {
 /// The six inward walls of a box with unequal, non-dyadic sides (so that scaled and shifted
 /// coordinates round), one corner at `corner`.
 fn box_walls(corner: DVec3, size: DVec3) -> Vec<Polygon> {
-    let p = |x: f64, y: f64, z: f64| corner + size * v(x, y, z);
-    let walls = [
-        [p(0., 0., 0.), p(1., 0., 0.), p(1., 1., 0.), p(0., 1., 0.)],
-        [p(0., 0., 1.), p(0., 1., 1.), p(1., 1., 1.), p(1., 0., 1.)],
-        [p(0., 0., 0.), p(0., 1., 0.), p(0., 1., 1.), p(0., 0., 1.)],
-        [p(1., 0., 0.), p(1., 0., 1.), p(1., 1., 1.), p(1., 1., 0.)],
-        [p(0., 0., 0.), p(0., 0., 1.), p(1., 0., 1.), p(1., 0., 0.)],
-        [p(0., 1., 0.), p(1., 1., 0.), p(1., 1., 1.), p(0., 1., 1.)],
-    ];
-    walls
+    reference::box_walls(corner, size)
         .iter()
         .enumerate()
         .map(|(k, w)| quad_polygon(w.to_vec(), k))

@@ -40,16 +40,7 @@ pub fn rect_z(x: [f64; 2], y: [f64; 2], z: f64, up: bool, index: usize) -> Polyg
 
 /// The paper's cube: the unit cube's six walls, facing inward.
 pub fn cube() -> Vec<Polygon> {
-    let v = DVec3::new;
-    let walls = [
-        [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)],
-        [v(0., 0., 1.), v(0., 1., 1.), v(1., 1., 1.), v(1., 0., 1.)],
-        [v(0., 0., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., 0., 1.)],
-        [v(1., 0., 0.), v(1., 0., 1.), v(1., 1., 1.), v(1., 1., 0.)],
-        [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
-        [v(0., 1., 0.), v(1., 1., 0.), v(1., 1., 1.), v(0., 1., 1.)],
-    ];
-    walls
+    reference::unit_cube_walls()
         .iter()
         .enumerate()
         .map(|(k, c)| polygon(c, k))
