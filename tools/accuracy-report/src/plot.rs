@@ -28,9 +28,13 @@ use canvas::Canvas;
 pub const ERROR_VS_TIME_SIZE: (u32, u32) = (1200, 800);
 /// Size of the [`scanline`] image in pixels.
 pub const SCANLINE_SIZE: (u32, u32) = (1200, 1000);
-/// Errors and times at or below zero cannot go on a log axis: [`error_vs_time`] draws them
-/// at this value instead (and says how many it moved in a note under the plot).
-pub const LOG_FLOOR: f64 = 1e-17;
+/// Errors at or below zero cannot go on a log axis: [`error_vs_time`] draws them at this
+/// value instead (and says how many it moved in a note under the plot). Below the error of
+/// any f64 computation of values near 1.
+pub const ERROR_FLOOR: f64 = 1e-17;
+/// Times at or below zero (a run faster than the clock's resolution) are drawn at this value,
+/// 1 ns, likewise: a floor as low as the error's would squeeze every real time into a corner.
+pub const TIME_FLOOR: f64 = 1e-9;
 
 /// The font family name the embedded font is registered under; plotters' own default
 /// text styles ask for it too.
@@ -125,10 +129,10 @@ pub fn pareto_front(points: &[Point]) -> Vec<usize> {
 /// (legend, in order of first appearance), the Pareto front drawn as a staircase through its
 /// points and its points labelled with `label` (small text). Written as a 1200×800 PNG.
 ///
-/// Points with a NaN or infinite time or error are skipped. A time or error at or below
-/// zero cannot be shown on a log axis: it is clamped to [`LOG_FLOOR`] (1e-17), and a note
-/// under the plot says how many points were skipped or clamped. The front is computed from
-/// the values as given (before clamping).
+/// Points with a NaN or infinite time or error are skipped. Values at or below zero cannot be
+/// shown on a log axis: an error <= 0 is clamped to [`ERROR_FLOOR`] (1e-17) and a time <= 0
+/// to [`TIME_FLOOR`] (1e-9 s). A note under the plot says how many points were skipped or
+/// clamped. The front is computed from the values as given (before clamping).
 ///
 /// Errors: [`PlotError::Empty`] for no points, [`PlotError::NoFiniteData`] when every point
 /// is skipped.
@@ -149,14 +153,12 @@ pub fn error_vs_time(
         return Err(PlotError::NoFiniteData("points"));
     }
     let skipped = points.len() - finite.len();
-    let clamped = finite
-        .iter()
-        .filter(|&&i| points[i].time_s <= 0.0 || points[i].error <= 0.0)
-        .count();
+    let clamped_errors = finite.iter().filter(|&&i| points[i].error <= 0.0).count();
+    let clamped_times = finite.iter().filter(|&&i| points[i].time_s <= 0.0).count();
     let at = |i: usize| {
         (
-            points[i].time_s.max(LOG_FLOOR),
-            points[i].error.max(LOG_FLOOR),
+            points[i].time_s.max(TIME_FLOOR),
+            points[i].error.max(ERROR_FLOOR),
         )
     };
     let subset: Vec<Point> = finite.iter().map(|&i| points[i].clone()).collect();
@@ -185,6 +187,7 @@ pub fn error_vs_time(
         let mut chart = ChartBuilder::on(&root)
             .caption(title, (FONT, 30))
             .margin(20)
+            .margin_bottom(36) // room for the note on skipped or clamped points
             .x_label_area_size(70)
             .y_label_area_size(100)
             .build_cartesian_2d(x_range.log_scale(), y_range.log_scale())?;
@@ -328,15 +331,20 @@ pub fn error_vs_time(
                 "{skipped} point(s) with a NaN or infinite value not shown"
             ));
         }
-        if clamped > 0 {
+        if clamped_errors > 0 {
             notes.push(format!(
-                "{clamped} point(s) with a time or error <= 0 drawn at {LOG_FLOOR:e}"
+                "{clamped_errors} point(s) with an error <= 0 drawn at {ERROR_FLOOR:e}"
+            ));
+        }
+        if clamped_times > 0 {
+            notes.push(format!(
+                "{clamped_times} point(s) with a time <= 0 drawn at {TIME_FLOOR:e} s"
             ));
         }
         if !notes.is_empty() {
             root.draw(&Text::new(
                 notes.join("; "),
-                (12, h as i32 - 26),
+                (12, h as i32 - 28),
                 (FONT, 15).into_font().color(&BLACK.mix(0.7)),
             ))?;
         }
@@ -486,6 +494,11 @@ pub fn scanline(
                 let style = colour.stroke_width(width);
                 for run in samples(c, band).split(|s| s.is_none()) {
                     let run: Vec<(f64, f64)> = run.iter().flatten().copied().collect();
+                    if let [single] = run[..] {
+                        // No line through one sample: a dot, so that it is not lost.
+                        chart.draw_series([Circle::new(single, width + 2, colour.filled())])?;
+                        continue;
+                    }
                     match dash {
                         Dash::Solid => {
                             chart.draw_series(LineSeries::new(run, style))?;
