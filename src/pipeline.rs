@@ -104,7 +104,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         segments: cli.ff_segments,
         order: cli.ff_order,
         auto_order: !cli.ff_fixed_order,
-        ..ContourOptions::default()
+        near_ratio: cli.ff_near_ratio,
     };
     // Occlusion only where the scene calls for it: polygon pairs a third polygon can come
     // between get shadow rays, all others keep the exact contour value.

@@ -1,100 +1,492 @@
-//! `accuracy-report`: for now only writes demo plots, to show what the report's plots look
-//! like; the report itself comes later.
+//! `accuracy-report [--quick] [--out DIR] [--doc FILE]`: what accuracy costs in time.
 //!
-//! Usage: `accuracy-report OUT_DIR` writes `OUT_DIR/error_vs_time.png` and
-//! `OUT_DIR/scanline.png` from synthetic data.
+//! Sweeps the knobs of a bake — subdivision, form-factor estimator and tolerance, contour
+//! segments and quadrature order, shadow rays, direct solve vs K bounces, flat vs smoothed
+//! display, and the `--quality` presets — over the reference scenes:
+//! - the paper's cube, against the exact solution of a 24 × 24-per-wall mesh built from
+//!   closed-form rectangle form factors (`bake-reference`), and per row against the exact
+//!   solution of its own mesh (the form-factor and solver error alone);
+//! - the Cornell box, against a converged solution (finest mesh, contour integral, 961 rays),
+//!   whose own convergence is measured the same way.
+//!
+//! For each setting it measures wall time, peak heap, kernel evaluations and rays, and the
+//! max/RMS relative error of element radiosity and of the flat and smoothed radiance along a
+//! scanline; it writes `accuracy.csv`, error-versus-time plots with the Pareto front marked,
+//! RGB scanline plots of the cube like the paper's Figures 6 and 7, and `docs/accuracy.md`.
+//! `--quick` runs a small sweep (seconds; for tests).
 
+mod doc;
+mod measure;
+mod peak;
 mod plot;
 
-use std::path::PathBuf;
+use anyhow::{bail, Context, Result};
+use form_factor::{ContourOptions, Estimator, TriangleRule};
+use measure::{Errors, Field, Run, Scanline, Scene, Setting, Solve};
+use mesher::Subdivision;
+use presets::Quality;
+use std::path::{Path, PathBuf};
 
-use anyhow::Context;
-use plot::{Curve, Point};
+#[global_allocator]
+static ALLOCATOR: peak::Counting = peak::Counting;
 
-fn main() -> anyhow::Result<()> {
-    let dir = PathBuf::from(
-        std::env::args_os()
-            .nth(1)
-            .context("usage: accuracy-report OUT_DIR")?,
-    );
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+/// One measured row of the report.
+pub struct Row {
+    pub scene: &'static str,
+    pub setting: Setting,
+    pub elements: usize,
+    pub time_s: f64,
+    pub ff_s: f64,
+    pub solve_s: f64,
+    pub peak_mb: f64,
+    pub evaluations: u64,
+    pub rays: u64,
+    pub by_method: [u64; 3],
+    pub element: Errors,
+    pub same_mesh: Option<Errors>,
+    pub scan_flat: Option<Errors>,
+    pub scan_smooth: Option<Errors>,
+}
 
-    // Three solvers, each run at a few accuracy settings: error falls as a power of time.
-    let mut points = Vec::new();
-    for (group, t0, e0, slope) in [
-        ("jacobi", 0.02, 0.3, 1.0),
-        ("gauss-seidel", 0.015, 0.2, 1.6),
-        ("progressive", 0.005, 0.5, 1.2),
-    ] {
-        for k in 0..6 {
-            let time_s: f64 = t0 * 2f64.powi(k);
-            let error = e0 * (time_s / t0).powf(-slope) * (1.0 + 0.15 * (k as f64).sin());
-            points.push(Point {
-                label: format!("{group} n={}", 1 << k),
-                group: group.to_string(),
-                time_s,
-                error,
-            });
+struct Options {
+    quick: bool,
+    out: PathBuf,
+    doc: Option<PathBuf>,
+}
+
+fn main() -> Result<()> {
+    let options = parse_args()?;
+    std::fs::create_dir_all(&options.out)
+        .with_context(|| format!("creating {}", options.out.display()))?;
+    let root = workspace_root();
+    let cube = Scene::load("cube", &root.join("fixtures/cube.gltf"))?;
+    let mut rows = Vec::new();
+    let cube_summary = cube_sweep(&cube, &options, &mut rows)?;
+    let cornell_summary = if options.quick {
+        None
+    } else {
+        let cornell = Scene::load("cornell", &root.join("fixtures/cornell.gltf"))?;
+        Some(cornell_sweep(&cornell, &mut rows)?)
+    };
+    let csv = options.out.join("accuracy.csv");
+    std::fs::write(&csv, doc::csv(&rows)).with_context(|| format!("{}", csv.display()))?;
+    eprintln!("wrote {}", csv.display());
+    for scene in ["cube", "cornell"] {
+        let points: Vec<plot::Point> = rows
+            .iter()
+            .filter(|r| r.scene == scene)
+            .map(|r| plot::Point {
+                label: r.setting.label.clone(),
+                group: r.setting.group.clone(),
+                time_s: r.time_s,
+                error: r.element.rms,
+            })
+            .collect();
+        if points.is_empty() {
+            continue;
+        }
+        let path = options.out.join(format!("{scene}-pareto.png"));
+        plot::error_vs_time(
+            &path,
+            &format!("{scene}: RMS relative error of element radiosity vs bake time"),
+            "time (s, 2 cores)",
+            "RMS relative error",
+            &points,
+        )?;
+        eprintln!("wrote {}", path.display());
+    }
+    let curves = &cube_summary.curves;
+    plot::scanline(
+        &options.out.join("cube-scanline-shading.png"),
+        "cube, scanline y = 0.43: flat vs smoothed (paper Figs. 6, 8)",
+        "position along the scanline (red wall | back wall | blue wall)",
+        &curves.shading,
+        &curves.breaks,
+        &["back wall", "blue wall"],
+    )?;
+    plot::scanline(
+        &options.out.join("cube-scanline-bounces.png"),
+        "cube, scanline y = 0.43: K bounces vs the full solution (paper Fig. 7)",
+        "position along the scanline (red wall | back wall | blue wall)",
+        &curves.bounces,
+        &curves.breaks,
+        &["back wall", "blue wall"],
+    )?;
+    if let Some(path) = &options.doc {
+        let text = doc::markdown(&rows, &cube_summary, cornell_summary.as_ref(), &options.out);
+        std::fs::write(path, text).with_context(|| format!("{}", path.display()))?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+fn parse_args() -> Result<Options> {
+    let root = workspace_root();
+    let mut options = Options {
+        quick: false,
+        out: root.join("docs/accuracy"),
+        doc: Some(root.join("docs/accuracy.md")),
+    };
+    let mut args = std::env::args().skip(1);
+    while let Some(arg) = args.next() {
+        match arg.as_str() {
+            "--quick" => options.quick = true,
+            "--out" => options.out = args.next().context("--out needs a directory")?.into(),
+            "--doc" => options.doc = Some(args.next().context("--doc needs a file")?.into()),
+            "--no-doc" => options.doc = None,
+            "-h" | "--help" => {
+                println!(
+                    "usage: accuracy-report [--quick] [--out DIR] [--doc FILE | --no-doc]\n\
+                     defaults: --out docs/accuracy --doc docs/accuracy.md (workspace root)"
+                );
+                std::process::exit(0);
+            }
+            other => bail!("unknown argument {other:?} (try --help)"),
         }
     }
-    let front = plot::pareto_front(&points);
-    println!(
-        "Pareto front: {:?}",
-        front.iter().map(|&i| &points[i].label).collect::<Vec<_>>()
-    );
-    let path = dir.join("error_vs_time.png");
-    plot::error_vs_time(
-        &path,
-        "Error versus time (demo data)",
-        "time (s)",
-        "RMS error",
-        &points,
-    )
-    .with_context(|| format!("writing {}", path.display()))?;
+    Ok(options)
+}
 
-    // A scanline over three walls: the reference is smooth, one estimate is piecewise constant
-    // (one value per patch), one is smooth but biased.
-    let x: Vec<f64> = (0..=300).map(|i| f64::from(i) / 100.0).collect();
-    let smooth = |x: f64| {
-        [
-            0.6 + 0.25 * (2.0 * x).sin(),
-            0.4 + 0.2 * x.cos(),
-            0.3 + 0.1 * x,
-        ]
-    };
-    let curves = vec![
-        Curve {
-            label: "reference".into(),
-            x: x.clone(),
-            rgb: x.iter().map(|&x| smooth(x)).collect(),
-        },
-        Curve {
-            label: "constant patches".into(),
-            x: x.clone(),
-            rgb: x
-                .iter()
-                .map(|&x| smooth((x * 5.0).floor().min(14.0) / 5.0 + 0.1))
-                .collect(),
-        },
-        Curve {
-            label: "smooth, biased".into(),
-            x: x.clone(),
-            rgb: x
-                .iter()
-                .map(|&x| smooth(x).map(|v| 0.9 * v + 0.02))
-                .collect(),
-        },
+fn workspace_root() -> PathBuf {
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+    manifest.ancestors().nth(2).unwrap_or(manifest).to_path_buf()
+}
+
+fn contour() -> ContourOptions {
+    ContourOptions::default()
+}
+
+fn setting(group: &str, label: String, subdivision: Subdivision, estimator: Estimator) -> Setting {
+    Setting {
+        group: group.to_string(),
+        label,
+        subdivision,
+        estimator,
+        contour: contour(),
+        samples: form_factor::visibility::DEFAULT_SAMPLES,
+        solve: Solve::Direct,
+    }
+}
+
+fn estimator_label(e: Estimator) -> String {
+    match e {
+        Estimator::Contour => "contour".into(),
+        Estimator::PointPolygon(rule) => format!("point-polygon {}", rule.points()),
+        Estimator::PointPoint => "point-point".into(),
+        Estimator::Auto { tolerance } => format!("auto {tolerance:.0e}"),
+    }
+}
+
+/// What the markdown needs beyond the rows.
+pub struct CubeSummary {
+    pub reference_n: u32,
+    pub reference_elements: usize,
+    /// Richardson estimate of the reference's own RMS error (from the n/4, n/2, n errors).
+    pub reference_convergence: Vec<(u32, Errors)>,
+    pub curves: Curves,
+}
+
+pub struct Curves {
+    pub shading: Vec<plot::Curve>,
+    pub bounces: Vec<plot::Curve>,
+    pub breaks: Vec<f64>,
+}
+
+pub struct CornellSummary {
+    pub reference_label: String,
+    pub reference_elements: usize,
+    pub reference_time_s: f64,
+    /// The reference against a finer one: its own convergence.
+    pub convergence: Vec<(String, usize, Errors)>,
+}
+
+fn cube_sweep(cube: &Scene, options: &Options, rows: &mut Vec<Row>) -> Result<CubeSummary> {
+    let quick = options.quick;
+    let reference_n = if quick { 8 } else { 24 };
+    eprintln!("cube: exact reference at {reference_n} x {reference_n} per wall ...");
+    let ref_mesh = mesher::mesh(&cube.polygons, Subdivision::Count(reference_n))?;
+    let ref_b = measure::closed_form_solution(cube, &ref_mesh)?;
+    let reference = Field::new(&ref_mesh, &ref_b);
+    let scanline = Scanline::cube(cube, 600)?;
+    let ref_scan = scanline.sample(&reference, true);
+
+    let subdivs: &[u32] = if quick { &[1, 2, 4] } else { &[1, 2, 3, 4, 6, 8, 12] };
+    let focus = if quick { 4 } else { 8 };
+    let mut settings = Vec::new();
+    for &n in subdivs {
+        settings.push(setting(
+            "subdivision, contour",
+            format!("n={n}"),
+            Subdivision::Count(n),
+            Estimator::Contour,
+        ));
+    }
+    for &n in subdivs.iter().skip(1) {
+        settings.push(setting(
+            "subdivision, auto 1e-3",
+            format!("n={n} auto"),
+            Subdivision::Count(n),
+            Estimator::Auto { tolerance: 1e-3 },
+        ));
+    }
+    // Estimators at one mesh.
+    let mut estimators = vec![
+        Estimator::PointPoint,
+        Estimator::PointPolygon(TriangleRule::Centroid),
+        Estimator::PointPolygon(TriangleRule::Three),
+        Estimator::PointPolygon(TriangleRule::Seven),
     ];
-    let path = dir.join("scanline.png");
-    plot::scanline(
-        &path,
-        "Scanline intensity (demo data)",
-        "position along the scanline",
-        &curves,
-        &[1.0, 2.0],
-        &["left | back", "back | right"],
-    )
-    .with_context(|| format!("writing {}", path.display()))?;
-    println!("wrote {}", dir.display());
-    Ok(())
+    for t in [1e-1, 1e-2, 1e-3, 1e-4, 1e-6, 1e-8] {
+        estimators.push(Estimator::Auto { tolerance: t });
+    }
+    for e in estimators {
+        settings.push(setting(
+            &format!("estimator, n={focus}"),
+            estimator_label(e),
+            Subdivision::Count(focus),
+            e,
+        ));
+    }
+    // Contour quadrature knobs at the same mesh.
+    // (segments, order, near ratio): the paper's rule is (1, 3, 0) — Gauss everywhere but on
+    // collinear segments; the default is (1, 3, 8) with the order raised automatically.
+    for (segments, order, near) in [
+        (1, 1, 0.0),
+        (1, 2, 0.0),
+        (1, 3, 0.0),
+        (2, 3, 0.0),
+        (4, 3, 0.0),
+        (1, 3, 2.0),
+        (1, 3, 4.0),
+    ] {
+        let mut s = setting(
+            &format!("contour quadrature, n={focus}"),
+            format!("contour s={segments} o={order} near={near}"),
+            Subdivision::Count(focus),
+            Estimator::Contour,
+        );
+        s.contour = ContourOptions {
+            segments,
+            order,
+            auto_order: false,
+            near_ratio: near,
+        };
+        settings.push(s);
+    }
+    // Bounces.
+    for k in [0, 1, 2, 4, 8, 16] {
+        let mut s = setting(
+            &format!("bounces, n={focus}"),
+            format!("K={k}"),
+            Subdivision::Count(focus),
+            Estimator::Contour,
+        );
+        s.solve = Solve::Bounces(k);
+        settings.push(s);
+    }
+    // Presets.
+    for q in Quality::ALL {
+        let p = q.preset();
+        let mut s = setting(
+            "preset",
+            format!("--quality {}", q.name()),
+            Subdivision::MaxSize(p.max_element_size(&cube.polygons)),
+            p.estimator,
+        );
+        s.samples = p.visibility_samples;
+        settings.push(s);
+    }
+
+    let mut curves = Curves {
+        shading: vec![plot::Curve {
+            label: format!("reference ({reference_n}x{reference_n}, smoothed)"),
+            x: scanline.positions(),
+            rgb: ref_scan.clone(),
+        }],
+        bounces: Vec::new(),
+        breaks: scanline.breaks.clone(),
+    };
+    let mut exact_cache: Vec<(usize, Vec<[f64; 3]>)> = Vec::new();
+    let mut full_solution: Option<Vec<[f64; 3]>> = None;
+    let mut bounce_curves = Vec::new();
+    for s in settings {
+        eprintln!("cube: {} / {}", s.group, s.label);
+        let run = measure::bake(cube, &s)?;
+        let field = Field::new(&run.mesh, &run.b);
+        let element = measure::element_errors(&field, &reference);
+        let n = run.mesh.elements.len();
+        let exact = match exact_cache.iter().find(|(m, _)| *m == n) {
+            Some((_, b)) => b.clone(),
+            None => {
+                let b = measure::closed_form_solution(cube, &run.mesh)?;
+                exact_cache.push((n, b.clone()));
+                b
+            }
+        };
+        let same = measure::same_mesh_errors(&run.mesh, &run.b, &exact);
+        let flat = scanline.sample(&field, false);
+        let smooth = scanline.sample(&field, true);
+        let scan_flat = measure::scanline_errors(&flat, &ref_scan);
+        let scan_smooth = measure::scanline_errors(&smooth, &ref_scan);
+        if s.group.starts_with("subdivision, contour") && s.subdivision == Subdivision::Count(focus)
+        {
+            curves.shading.push(plot::Curve {
+                label: format!("{focus}x{focus} flat"),
+                x: scanline.positions(),
+                rgb: flat.clone(),
+            });
+            curves.shading.push(plot::Curve {
+                label: format!("{focus}x{focus} smoothed"),
+                x: scanline.positions(),
+                rgb: smooth.clone(),
+            });
+            full_solution = Some(smooth.clone());
+        }
+        if let Solve::Bounces(k) = s.solve {
+            if k <= 8 {
+                bounce_curves.push(plot::Curve {
+                    label: format!("{k} bounces"),
+                    x: scanline.positions(),
+                    rgb: smooth.clone(),
+                });
+            }
+        }
+        rows.push(row(cube.name, s, &run, element, Some(same), Some(scan_flat), Some(scan_smooth)));
+    }
+    if let Some(full) = full_solution {
+        curves.bounces.push(plot::Curve {
+            label: format!("full solution ({focus}x{focus}, smoothed)"),
+            x: scanline.positions(),
+            rgb: full,
+        });
+    }
+    curves.bounces.extend(bounce_curves);
+
+    // The reference's own convergence: exact solutions at n/4 and n/2 against it.
+    let mut reference_convergence = Vec::new();
+    for n in [reference_n / 4, reference_n / 2] {
+        let mesh = mesher::mesh(&cube.polygons, Subdivision::Count(n))?;
+        let b = measure::closed_form_solution(cube, &mesh)?;
+        let e = measure::element_errors(&Field::new(&mesh, &b), &reference);
+        reference_convergence.push((n, e));
+    }
+    Ok(CubeSummary {
+        reference_n,
+        reference_elements: ref_mesh.elements.len(),
+        reference_convergence,
+        curves,
+    })
+}
+
+fn row(
+    scene: &'static str,
+    setting: Setting,
+    run: &Run,
+    element: Errors,
+    same_mesh: Option<Errors>,
+    scan_flat: Option<Errors>,
+    scan_smooth: Option<Errors>,
+) -> Row {
+    let m = run.stats.pairs_by_method;
+    Row {
+        scene,
+        setting,
+        elements: run.mesh.elements.len(),
+        time_s: run.time_s,
+        ff_s: run.ff_s,
+        solve_s: run.solve_s,
+        peak_mb: run.peak_bytes as f64 / 1e6,
+        evaluations: run.stats.evaluations,
+        rays: run.stats.visibility.rays_cast,
+        by_method: [m.contour, m.point_polygon, m.point_point],
+        element,
+        same_mesh,
+        scan_flat,
+        scan_smooth,
+    }
+}
+
+fn cornell_sweep(cornell: &Scene, rows: &mut Vec<Row>) -> Result<CornellSummary> {
+    let size = |per_diagonal: f64| {
+        let (lo, hi) = importer::bounds(&cornell.polygons);
+        Subdivision::MaxSize((hi - lo).length() / per_diagonal)
+    };
+    let reference_setting = |per_diagonal: f64| {
+        let mut s = setting(
+            "reference",
+            format!("diagonal/{per_diagonal}, contour, 961 rays"),
+            size(per_diagonal),
+            Estimator::Contour,
+        );
+        s.samples = 961;
+        s
+    };
+    eprintln!("cornell: reference ...");
+    let fine = reference_setting(24.0);
+    let reference_run = measure::bake_once(cornell, &fine)?;
+    let reference = Field::new(&reference_run.mesh, &reference_run.b);
+    let mut convergence = Vec::new();
+    for per_diagonal in [12.0, 16.0] {
+        let s = reference_setting(per_diagonal);
+        let run = measure::bake_once(cornell, &s)?;
+        let e = measure::element_errors(&Field::new(&run.mesh, &run.b), &reference);
+        convergence.push((s.label.clone(), run.mesh.elements.len(), e));
+    }
+
+    let mut settings = Vec::new();
+    for d in [4.0, 6.0, 8.0, 12.0, 16.0] {
+        settings.push(setting(
+            "subdivision, auto 1e-3, 289 rays",
+            format!("diag/{d}"),
+            size(d),
+            Estimator::Auto { tolerance: 1e-3 },
+        ));
+    }
+    for samples in [16, 49, 121, 289, 961] {
+        let mut s = setting(
+            "rays, diag/12",
+            format!("{samples} rays"),
+            size(12.0),
+            Estimator::Auto { tolerance: 1e-3 },
+        );
+        s.samples = samples;
+        settings.push(s);
+    }
+    for e in [
+        Estimator::Contour,
+        Estimator::Auto { tolerance: 1e-2 },
+        Estimator::Auto { tolerance: 1e-4 },
+        Estimator::PointPolygon(TriangleRule::Three),
+        Estimator::PointPoint,
+    ] {
+        settings.push(setting(
+            "estimator, diag/12, 289 rays",
+            estimator_label(e),
+            size(12.0),
+            e,
+        ));
+    }
+    for q in [Quality::Draft, Quality::Normal] {
+        let p = q.preset();
+        let mut s = setting(
+            "preset",
+            format!("--quality {}", q.name()),
+            Subdivision::MaxSize(p.max_element_size(&cornell.polygons)),
+            p.estimator,
+        );
+        s.samples = p.visibility_samples;
+        settings.push(s);
+    }
+    for s in settings {
+        eprintln!("cornell: {} / {}", s.group, s.label);
+        let run = measure::bake(cornell, &s)?;
+        let element = measure::element_errors(&Field::new(&run.mesh, &run.b), &reference);
+        rows.push(row(cornell.name, s, &run, element, None, None, None));
+    }
+    Ok(CornellSummary {
+        reference_label: fine.label.clone(),
+        reference_elements: reference_run.mesh.elements.len(),
+        reference_time_s: reference_run.time_s,
+        convergence,
+    })
 }

@@ -1,0 +1,470 @@
+//! One setting of the sweep, baked in-process stage by stage (mesh → visibility → form factors
+//! → solve, as `bake` does), timed, with its peak heap; and the fields and errors that compare a
+//! solution against a reference solution on another mesh of the same polygons.
+
+use crate::peak;
+use anyhow::{anyhow, Context, Result};
+use form_factor::{ContourOptions, Estimator, FormFactors, Occluders, Occlusion, Stats};
+use glam::DVec3;
+use importer::Polygon;
+use mesher::{ElementMesh, Subdivision};
+use solver::{DenseMatrix, IterativeOptions};
+use std::time::Instant;
+
+/// A loaded scene: its polygons and per-polygon ρ and e.
+pub struct Scene {
+    pub name: &'static str,
+    pub polygons: Vec<Polygon>,
+    pub rho: Vec<[f64; 3]>,
+    pub emission: Vec<[f64; 3]>,
+}
+
+impl Scene {
+    pub fn load(name: &'static str, path: &std::path::Path) -> Result<Scene> {
+        let scene = importer::load(path).with_context(|| format!("{}", path.display()))?;
+        let (rho, emission) = scene
+            .polygons
+            .iter()
+            .map(|p| {
+                let m = &scene.materials[p.material];
+                (m.rho, m.emission)
+            })
+            .unzip();
+        Ok(Scene {
+            name,
+            polygons: scene.polygons,
+            rho,
+            emission,
+        })
+    }
+
+    /// Per-element ρ and e of `mesh`.
+    pub fn element_values(&self, mesh: &ElementMesh) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+        mesh.elements
+            .iter()
+            .map(|e| {
+                let p = e.polygon as usize;
+                (self.rho[p], self.emission[p])
+            })
+            .unzip()
+    }
+}
+
+/// How to solve `(I − ρF) b = e`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Solve {
+    Direct,
+    /// The truncated series: direct light plus this many interreflections.
+    Bounces(u32),
+}
+
+/// One point of the sweep.
+#[derive(Clone, Debug)]
+pub struct Setting {
+    /// The knob this row varies (a plot legend group).
+    pub group: String,
+    pub label: String,
+    pub subdivision: Subdivision,
+    pub estimator: Estimator,
+    pub contour: ContourOptions,
+    pub samples: u32,
+    pub solve: Solve,
+}
+
+/// A finished bake and what it cost.
+pub struct Run {
+    pub mesh: ElementMesh,
+    pub b: Vec<[f64; 3]>,
+    /// Wall time of mesh + visibility + form factors + solve (the fastest of the repeats).
+    pub time_s: f64,
+    pub ff_s: f64,
+    pub solve_s: f64,
+    pub peak_bytes: usize,
+    pub stats: Stats,
+}
+
+/// Bakes `setting` (repeated while it takes under 0.2 s, up to 3 times, keeping the fastest).
+pub fn bake(scene: &Scene, setting: &Setting) -> Result<Run> {
+    let mut best: Option<Run> = None;
+    for _ in 0..3 {
+        let run = bake_once(scene, setting)?;
+        let fast = run.time_s < 0.2;
+        if best.as_ref().is_none_or(|b| run.time_s < b.time_s) {
+            best = Some(run);
+        }
+        if !fast {
+            break;
+        }
+    }
+    best.ok_or_else(|| anyhow!("no run"))
+}
+
+pub fn bake_once(scene: &Scene, setting: &Setting) -> Result<Run> {
+    let base = peak::reset();
+    let start = Instant::now();
+    let mesh = mesher::mesh(&scene.polygons, setting.subdivision)?;
+    let occluders = Occluders::new(&scene.polygons)?;
+    let pairs = occluders.occludable_pairs();
+    let mut ff = FormFactors::new(&mesh, setting.contour).with_estimator(setting.estimator);
+    if pairs.effects().occlusion {
+        ff = ff.with_occlusion(Occlusion {
+            occluders: &occluders,
+            pairs: &pairs,
+            samples: setting.samples,
+        });
+    }
+    let ff_start = Instant::now();
+    let dense = ff.dense();
+    let ff_s = ff_start.elapsed().as_secs_f64();
+    let solve_start = Instant::now();
+    let (rho, e) = scene.element_values(&mesh);
+    let f = DenseMatrix::new(dense.n, &dense.data)?.with_accuracy(setting.estimator.row_sum_accuracy());
+    let solution = match setting.solve {
+        Solve::Direct => solver::solve_direct(&f, &rho, &e)?,
+        Solve::Bounces(k) => solver::solve_bounces(&f, &rho, &e, k)?,
+    };
+    let solve_s = solve_start.elapsed().as_secs_f64();
+    let time_s = start.elapsed().as_secs_f64();
+    let stats = dense.stats;
+    drop(dense);
+    Ok(Run {
+        mesh,
+        b: solution.b,
+        time_s,
+        ff_s,
+        solve_s,
+        peak_bytes: peak::peak().saturating_sub(base),
+        stats,
+    })
+}
+
+/// The exact solution of `mesh` from closed-form rectangle form factors (the paper's cube:
+/// every element an axis-aligned rectangle), solved by GMRES to a residual of 1e-13.
+pub fn closed_form_solution(scene: &Scene, mesh: &ElementMesh) -> Result<Vec<[f64; 3]>> {
+    let data = reference::dense_form_factors(mesh)
+        .ok_or_else(|| anyhow!("{}: not every element is an axis-aligned rectangle", scene.name))?;
+    let (rho, e) = scene.element_values(mesh);
+    let f = DenseMatrix::new(mesh.elements.len(), &data)?;
+    let options = IterativeOptions {
+        tolerance: 1e-13,
+        max_iterations: 10_000,
+        ..IterativeOptions::default()
+    };
+    Ok(solver::solve_iterative(&f, &rho, &e, &options)?.b)
+}
+
+/// A solution as a function on the scene's surfaces: flat (each element's value) or smoothed
+/// (the paper's vertex averages, interpolated bilinearly over quads and linearly over
+/// triangles).
+pub struct Field<'a> {
+    pub mesh: &'a ElementMesh,
+    pub b: &'a [[f64; 3]],
+    smoothed: Vec<[f64; 3]>,
+}
+
+impl<'a> Field<'a> {
+    pub fn new(mesh: &'a ElementMesh, b: &'a [[f64; 3]]) -> Field<'a> {
+        Field {
+            mesh,
+            b,
+            smoothed: mesh.smooth(b),
+        }
+    }
+
+    /// The element of `polygon` containing `p` and p's parameters in it.
+    fn locate(&self, polygon: usize, p: DVec3) -> Option<(usize, [f64; 4])> {
+        let patch = self.mesh.patches.get(polygon)?;
+        let mut best: Option<(usize, [f64; 4], f64)> = None;
+        for k in patch.elements.clone() {
+            let k = k as usize;
+            let e = &self.mesh.elements[k];
+            let c: Vec<DVec3> = e
+                .corner_indices()
+                .iter()
+                .map(|&i| self.mesh.vertices[i as usize])
+                .collect();
+            // Cheap rejection before the inverse map: farther than every corner.
+            let reach = c.iter().map(|x| x.distance(e.centroid)).fold(0.0, f64::max);
+            if p.distance(e.centroid) > reach * (1.0 + 1e-6) {
+                continue;
+            }
+            let (weights, outside) = weights(&c, e.normal, p);
+            if outside <= 1e-9 {
+                return Some((k, weights));
+            }
+            if best.as_ref().is_none_or(|b| outside < b.2) {
+                best = Some((k, weights, outside));
+            }
+        }
+        // On an edge between elements rounding may put p a hair outside every one of them.
+        best.filter(|b| b.2 < 1e-6).map(|b| (b.0, b.1))
+    }
+
+    pub fn flat(&self, polygon: usize, p: DVec3) -> Option<[f64; 3]> {
+        self.locate(polygon, p).map(|(k, _)| self.b[k])
+    }
+
+    pub fn smooth(&self, polygon: usize, p: DVec3) -> Option<[f64; 3]> {
+        let (k, w) = self.locate(polygon, p)?;
+        let mut v = [0.0; 3];
+        for (corner, weight) in self.mesh.elements[k].corner_indices().iter().zip(w) {
+            for (band, value) in v.iter_mut().enumerate() {
+                *value += weight * self.smoothed[*corner as usize][band];
+            }
+        }
+        Some(v)
+    }
+}
+
+/// Interpolation weights of `p` at the corners `c` (bilinear for a quad by Newton's method on
+/// the inverse map, barycentric for a triangle), and how far outside the element p lies in
+/// parameter units (≤ 0 inside).
+fn weights(c: &[DVec3], normal: DVec3, p: DVec3) -> ([f64; 4], f64) {
+    let e1 = (c[1] - c[0]).normalize_or_zero();
+    let e2 = normal.cross(e1);
+    let to2 = |x: DVec3| glam::DVec2::new((x - c[0]).dot(e1), (x - c[0]).dot(e2));
+    let q = to2(p);
+    if c.len() == 3 {
+        let (a, b) = (to2(c[1]), to2(c[2]));
+        let det = a.perp_dot(b);
+        let l1 = q.perp_dot(b) / det;
+        let l2 = a.perp_dot(q) / det;
+        let l0 = 1.0 - l1 - l2;
+        let outside = (-l0).max(-l1).max(-l2);
+        return ([l0, l1, l2, 0.0], outside);
+    }
+    let (a, b, d) = (to2(c[1]), to2(c[2]), to2(c[3]));
+    // P(u, v) = u a + v d + u v (b − a − d), corner 0 at the origin.
+    let k = b - a - d;
+    let (mut u, mut v) = (0.5, 0.5);
+    for _ in 0..20 {
+        let r = a * u + d * v + k * (u * v) - q;
+        let (du, dv) = (a + k * v, d + k * u);
+        let det = du.perp_dot(dv);
+        if det.abs() < 1e-300 {
+            break;
+        }
+        let step_u = r.perp_dot(dv) / det;
+        let step_v = du.perp_dot(r) / det;
+        u -= step_u;
+        v -= step_v;
+        if step_u.abs() + step_v.abs() < 1e-15 {
+            break;
+        }
+    }
+    let outside = (-u).max(u - 1.0).max(-v).max(v - 1.0);
+    (
+        [(1.0 - u) * (1.0 - v), u * (1.0 - v), u * v, (1.0 - u) * v],
+        outside,
+    )
+}
+
+/// Max and area-weighted RMS relative error over elements and bands.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Errors {
+    pub max: f64,
+    pub rms: f64,
+}
+
+/// Sub-samples per reference element side for [`element_errors`].
+const SUBSAMPLES: usize = 4;
+
+/// Relative error of each element of `run` against the area average of the reference over it:
+/// each reference element is cut into 4 × 4 pieces (bilinear parameters; a triangle counts as
+/// one piece at its centroid) and each piece is credited to the element containing its centre.
+/// Exact when the reference grid refines this one (the cube's 24 × 24 refines 1, 2, 3, 4, 6, 8,
+/// 12); otherwise the average is off by at most a quarter of a reference element's variation.
+pub fn element_errors(coarse: &Field, reference: &Field) -> Errors {
+    let n = coarse.mesh.elements.len();
+    let mut sum = vec![[0.0f64; 3]; n];
+    let mut area = vec![0.0f64; n];
+    for (k, e) in reference.mesh.elements.iter().enumerate() {
+        let c: Vec<DVec3> = e
+            .corner_indices()
+            .iter()
+            .map(|&i| reference.mesh.vertices[i as usize])
+            .collect();
+        let pieces: Vec<(DVec3, f64)> = if c.len() == 4 {
+            let m = SUBSAMPLES;
+            let w = e.area / (m * m) as f64;
+            (0..m * m)
+                .map(|q| {
+                    let (u, v) = (
+                        ((q % m) as f64 + 0.5) / m as f64,
+                        ((q / m) as f64 + 0.5) / m as f64,
+                    );
+                    let p = c[0] * ((1.0 - u) * (1.0 - v))
+                        + c[1] * (u * (1.0 - v))
+                        + c[2] * (u * v)
+                        + c[3] * ((1.0 - u) * v);
+                    (p, w)
+                })
+                .collect()
+        } else {
+            vec![(e.centroid, e.area)]
+        };
+        for (p, w) in pieces {
+            if let Some((c, _)) = coarse.locate(e.polygon as usize, p) {
+                area[c] += w;
+                for band in 0..3 {
+                    sum[c][band] += w * reference.b[k][band];
+                }
+            }
+        }
+    }
+    let (mut max, mut sq, mut weight) = (0.0f64, 0.0, 0.0);
+    for (c, e) in coarse.mesh.elements.iter().enumerate() {
+        if area[c] == 0.0 {
+            continue;
+        }
+        for band in 0..3 {
+            let r = sum[c][band] / area[c];
+            if r > 0.0 {
+                let err = (coarse.b[c][band] - r).abs() / r;
+                max = max.max(err);
+                sq += e.area * err * err;
+                weight += e.area;
+            }
+        }
+    }
+    Errors {
+        max,
+        rms: if weight > 0.0 { (sq / weight).sqrt() } else { 0.0 },
+    }
+}
+
+/// Relative error of same-mesh solutions, element by element.
+pub fn same_mesh_errors(mesh: &ElementMesh, b: &[[f64; 3]], exact: &[[f64; 3]]) -> Errors {
+    let (mut max, mut sq, mut weight) = (0.0f64, 0.0, 0.0);
+    for ((e, x), r) in mesh.elements.iter().zip(b).zip(exact) {
+        for band in 0..3 {
+            if r[band] > 0.0 {
+                let err = (x[band] - r[band]).abs() / r[band];
+                max = max.max(err);
+                sq += e.area * err * err;
+                weight += e.area;
+            }
+        }
+    }
+    Errors {
+        max,
+        rms: if weight > 0.0 { (sq / weight).sqrt() } else { 0.0 },
+    }
+}
+
+/// A scanline across the scene: points on polygons, at positions along the line.
+pub struct Scanline {
+    pub points: Vec<(f64, usize, DVec3)>,
+    /// Positions where the line moves to the next wall.
+    pub breaks: Vec<f64>,
+}
+
+impl Scanline {
+    /// The paper's cube seen from the emitter (z = 1) towards the back wall (z = 0): a
+    /// horizontal line at height y = 0.43 (off every element edge of the swept grids) across
+    /// the red wall (x = 0) from front to back, the back wall left to right, and the blue wall
+    /// (x = 1) back to front. Position 0…3 is arc length.
+    pub fn cube(scene: &Scene, samples: usize) -> Result<Scanline> {
+        let find = |normal: DVec3| {
+            scene
+                .polygons
+                .iter()
+                .position(|p| p.normal.dot(normal) > 0.999)
+                .ok_or_else(|| anyhow!("cube: no wall facing {normal}"))
+        };
+        let (red, back, blue) = (find(DVec3::X)?, find(DVec3::Z)?, find(-DVec3::X)?);
+        let y = 0.43;
+        let mut points = Vec::new();
+        for k in 0..samples {
+            let s = 3.0 * (k as f64 + 0.5) / samples as f64;
+            let (polygon, p) = if s < 1.0 {
+                (red, DVec3::new(0.0, y, 1.0 - s))
+            } else if s < 2.0 {
+                (back, DVec3::new(s - 1.0, y, 0.0))
+            } else {
+                (blue, DVec3::new(1.0, y, s - 2.0))
+            };
+            points.push((s, polygon, p));
+        }
+        Ok(Scanline {
+            points,
+            breaks: vec![1.0, 2.0],
+        })
+    }
+
+    /// The field along the line.
+    pub fn sample(&self, field: &Field, smooth: bool) -> Vec<[f64; 3]> {
+        self.points
+            .iter()
+            .map(|&(_, polygon, p)| {
+                let v = if smooth {
+                    field.smooth(polygon, p)
+                } else {
+                    field.flat(polygon, p)
+                };
+                v.unwrap_or([f64::NAN; 3])
+            })
+            .collect()
+    }
+
+    pub fn positions(&self) -> Vec<f64> {
+        self.points.iter().map(|p| p.0).collect()
+    }
+}
+
+/// Max and RMS relative error of `values` against `reference` along a scanline.
+pub fn scanline_errors(values: &[[f64; 3]], reference: &[[f64; 3]]) -> Errors {
+    let (mut max, mut sq, mut count) = (0.0f64, 0.0, 0usize);
+    for (v, r) in values.iter().zip(reference) {
+        for band in 0..3 {
+            if r[band] > 0.0 && v[band].is_finite() {
+                let err = (v[band] - r[band]).abs() / r[band];
+                max = max.max(err);
+                sq += err * err;
+                count += 1;
+            }
+        }
+    }
+    Errors {
+        max,
+        rms: if count > 0 {
+            (sq / count as f64).sqrt()
+        } else {
+            0.0
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bilinear_weights_reproduce_the_point_and_flag_outside() {
+        let c = [
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(2.5, 1.0, 0.0),
+            DVec3::new(0.0, 1.5, 0.0),
+        ];
+        for p in [DVec3::new(1.0, 0.5, 0.0), DVec3::new(0.1, 1.2, 0.0)] {
+            let (w, outside) = weights(&c, DVec3::Z, p);
+            let back: DVec3 = c.iter().zip(w).map(|(x, w)| *x * w).sum();
+            assert!(back.distance(p) < 1e-12, "{back} vs {p}");
+            assert!(outside <= 0.0);
+            assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        }
+        let (_, outside) = weights(&c, DVec3::Z, DVec3::new(3.0, 0.5, 0.0));
+        assert!(outside > 0.1);
+        let tri = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        let (w, outside) = weights(&tri, DVec3::Z, DVec3::new(0.25, 0.25, 0.0));
+        assert!((w[0] - 0.5).abs() < 1e-15 && (w[1] - 0.25).abs() < 1e-15 && outside <= 0.0);
+    }
+
+    #[test]
+    fn errors_are_relative_and_area_weighted() {
+        let e = scanline_errors(&[[1.1, 2.0, 3.0], [1.0, 2.0, 3.3]], &[[1.0, 2.0, 3.0]; 2]);
+        assert!((e.max - 0.1).abs() < 1e-12);
+        assert!((e.rms - (0.02f64 / 6.0).sqrt()).abs() < 1e-12);
+    }
+}
