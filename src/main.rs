@@ -35,7 +35,7 @@ pub struct Cli {
     /// The accuracy–time trade in one knob: element size, form-factor estimator and
     /// tolerance, and shadow rays, as measured in docs/accuracy.md. `draft`: elements of
     /// diagonal/8, --ff-tolerance 1e-2, 49 rays; `normal`: diagonal/16, 1e-3, 289 rays;
-    /// `high`: diagonal/32, 1e-5, 961 rays. Options given explicitly override the preset.
+    /// `high`: diagonal/32, 1e-4, 961 rays. Options given explicitly override the preset.
     #[arg(long, value_enum, default_value_t = QualityArg::Normal)]
     pub quality: QualityArg,
 

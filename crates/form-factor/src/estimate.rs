@@ -28,8 +28,10 @@
 //!
 //! with the constants measured as the worst case over random pairs (quads and triangles of
 //! random shape, size, orientation and distance; see `error_model_constants` in the tests) and
-//! stated with a margin. [`Estimator::Auto`] takes the cheapest estimator whose bound meets the
-//! tolerance and falls back to the contour integral.
+//! stated with a margin. The contour integral itself is a candidate too, with a fixed Gauss
+//! rule of order 2–4 on whole edges (error `C (r/h)^p` on the worse side). [`Estimator::Auto`]
+//! takes the cheapest candidate (in ln-evaluation units: point-to-polygon's edge terms cost
+//! about two) whose bound meets the tolerance and falls back to the exact contour integral.
 
 use crate::polygon::Poly;
 use glam::DVec3;
@@ -71,7 +73,8 @@ impl Estimator {
 /// Quadrature rule on each triangle of an element's fan (a quad is two triangles).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum TriangleRule {
-    /// The centroid: 1 point, exact for polynomials of degree 1.
+    /// One point at the element's area centroid (not per triangle), exact for polynomials
+    /// of degree 1.
     Centroid,
     /// Strang & Fix's 3-point rule: exact to degree 2.
     Three,
@@ -86,7 +89,7 @@ impl TriangleRule {
         TriangleRule::Seven,
     ];
 
-    /// Points per triangle.
+    /// Points per triangle (per element for [`TriangleRule::Centroid`]).
     pub fn points(self) -> u32 {
         match self {
             TriangleRule::Centroid => 1,
@@ -130,11 +133,124 @@ impl TriangleRule {
 }
 
 /// Measured worst `e · (h/r)^p` over 4000 random pairs (h/r from 0.5 to beyond 256), about ×2
-/// for margin: centroid 1.06 → 2.2, 3-point 0.110 → 0.25, 7-point 0.156 → 0.35. The 7-point
+/// for margin: centroid 1.43 → 3.0, 3-point 0.110 → 0.25, 7-point 0.156 → 0.35. The 7-point
 /// rule's error reaches the rounding level of the reference (~1e-11 relative) beyond h/r ≈ 32,
 /// so its constant is measured below that; tolerances under [`MIN_TOLERANCE`] use the contour
 /// integral alone.
-const POINT_POLYGON_CONSTANTS: [f64; 3] = [2.2, 0.25, 0.35];
+const POINT_POLYGON_CONSTANTS: [f64; 3] = [3.0, 0.25, 0.35];
+
+/// The contour integral with a fixed product Gauss rule on whole edges (the paper's rule
+/// without its segments: no semi-analytic near pairs), orders 2, 3, 4: error `C (r/h)^p` with
+/// h/r the worse side (both contours are discretised). Measured worst: order 2, p = 3: 0.098
+/// → 0.2; order 3, p = 4: 7.9e-3 → 0.02; order 4, p = 6: 2.8e-2 → 0.06 (h/r below 32: beyond
+/// it the contour integral's own rounding, ~1e-10 relative, dominates; see `GAUSS_FLOOR`).
+const GAUSS_RULES: [(u32, i32, f64); 3] = [(2, 3, 0.2), (3, 4, 0.02), (4, 6, 0.06)];
+/// Rounding floor of the fixed Gauss contour rules (relative), added to their bounds.
+const GAUSS_FLOOR: f64 = 1e-9;
+
+/// The contour integral with the paper's 3-point rule and the semi-analytic rule only for
+/// segment pairs closer than 2 lengths (instead of 8): good at contact, where the Gauss rules
+/// above are not. Measured worst error per octave of h/r (worse side): 1.0e-3 below 1,
+/// 2.8e-5 at 1–2, 7.6e-5 at 2–4, 4.3e-6 at 4–8, 2.4e-7 at 8–16; bound `2e-3 / max(1, h/r)²`.
+const NEAR_RATIO: f64 = 2.0;
+const NEAR_CONSTANT: f64 = 2e-3;
+
+/// Relative cost of one edge term of point-to-polygon (an atan2, a cross product, a square
+/// root) against one ln of the contour integral, measured on the cube at 4 × 4 per wall:
+/// 24 ns against 12 ns.
+const EDGE_TERM_COST: f64 = 2.0;
+
+/// What [`Estimator::Auto`] picked for a pair.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Choice {
+    PointPoint,
+    PointPolygon(TriangleRule),
+    /// The contour integral by a fixed Gauss rule of this order on whole edges.
+    Gauss(u32),
+    /// The contour integral, 3-point rule, semi-analytic below [`NEAR_RATIO`] lengths.
+    Near,
+    /// The contour integral with the caller's options (exact to rounding by default).
+    Exact,
+}
+
+/// The cheapest estimator whose error bound meets `tolerance`: costs in ln evaluations.
+pub(crate) fn choose(g: &PairGeometry, polys: [&Poly; 2], tolerance: f64) -> Choice {
+    if tolerance < MIN_TOLERANCE {
+        return Choice::Exact;
+    }
+    let mut best = (f64::INFINITY, Choice::Exact);
+    let mut consider = |bound: f64, cost: f64, choice: Choice| {
+        if bound <= tolerance && cost < best.0 {
+            best = (cost, choice);
+        }
+    };
+    consider(g.point_point_bound(), 1.0, Choice::PointPoint);
+    let s = g.point_side();
+    let edges = polys[1 - s].len() as f64;
+    let triangles = polys[s].len().saturating_sub(2) as f64;
+    for rule in TriangleRule::ALL {
+        let points = match rule {
+            TriangleRule::Centroid => 1.0,
+            _ => rule.points() as f64 * triangles,
+        };
+        consider(
+            g.point_polygon_bound(rule),
+            points * edges * EDGE_TERM_COST,
+            Choice::PointPolygon(rule),
+        );
+    }
+    let pairs = non_perpendicular_edge_pairs(polys) as f64;
+    let ratio = g.ratio(0).min(g.ratio(1));
+    for (order, power, constant) in GAUSS_RULES {
+        consider(
+            constant * ratio.powi(-power) + GAUSS_FLOOR,
+            pairs * (order * order) as f64,
+            Choice::Gauss(order),
+        );
+    }
+    // The semi-analytic segment pairs cost more: counted as twice the 3-point rule.
+    consider(
+        NEAR_CONSTANT / ratio.max(1.0).powi(2) + GAUSS_FLOOR,
+        pairs * 18.0,
+        Choice::Near,
+    );
+    best.1
+}
+
+/// The contour options of a [`Choice`] computed by the contour integral.
+pub(crate) fn contour_options(choice: Choice) -> Option<crate::ContourOptions> {
+    let fixed = |order, near_ratio| crate::ContourOptions {
+        segments: 1,
+        order,
+        auto_order: false,
+        near_ratio,
+    };
+    match choice {
+        Choice::Gauss(order) => Some(fixed(order, 0.0)),
+        Choice::Near => Some(fixed(3, NEAR_RATIO)),
+        _ => None,
+    }
+}
+
+/// Edge pairs of the two contours that are not perpendicular (perpendicular ones contribute
+/// nothing to eq. 13 and cost nothing).
+fn non_perpendicular_edge_pairs(polys: [&Poly; 2]) -> usize {
+    let dirs = |p: &Poly| {
+        let mut d = [DVec3::ZERO; 8];
+        for (k, slot) in d.iter_mut().enumerate().take(p.len()) {
+            *slot = (p.vertex((k + 1) % p.len()) - p.vertex(k)).normalize_or_zero();
+        }
+        d
+    };
+    let (a, b) = (dirs(polys[0]), dirs(polys[1]));
+    let mut count = 0;
+    for u in &a[..polys[0].len()] {
+        for w in &b[..polys[1].len()] {
+            count += usize::from(u.dot(*w).abs() >= 1e-14);
+        }
+    }
+    count
+}
 /// Measured worst `e · (h/r)²` of point-to-point over the same pairs: 1.12 → 2.5.
 const POINT_POINT_CONSTANT: f64 = 2.5;
 
@@ -193,6 +309,16 @@ fn edge_term(x: DVec3, n: DVec3, p0: DVec3, p1: DVec3) -> f64 {
     }
 }
 
+/// `2π F_{dx→P}` for a polygon in front of x.
+#[inline]
+fn point_to_poly(x: DVec3, n: DVec3, to: &Poly) -> f64 {
+    let mut sum = 0.0;
+    for m in 0..to.len() {
+        sum += edge_term(x, n, to.vertex(m), to.vertex((m + 1) % to.len()));
+    }
+    sum.abs()
+}
+
 /// Geometry of a facing pair that the estimators and their error bounds need.
 pub(crate) struct PairGeometry {
     area: [f64; 2],
@@ -217,7 +343,7 @@ impl PairGeometry {
     }
 
     /// `(h/r)` for quadrature points on side `s`.
-    fn ratio(&self, s: usize) -> f64 {
+    pub(crate) fn ratio(&self, s: usize) -> f64 {
         if self.radius[s] > 0.0 {
             self.height[s].max(0.0) / self.radius[s]
         } else {
@@ -291,6 +417,10 @@ pub(crate) fn point_polygon(
 ) -> f64 {
     let s = g.point_side();
     let (from, n, to) = (polys[s], normals[s], polys[1 - s]);
+    if rule == TriangleRule::Centroid {
+        *evaluations += to.len() as u64;
+        return g.area[s] * point_to_poly(g.centroid[s], n, to) / (2.0 * PI);
+    }
     let o = from.vertex(0);
     let mut total = 0.0;
     for k in 1..from.len().saturating_sub(1) {
@@ -301,12 +431,7 @@ pub(crate) fn point_polygon(
         }
         let mut tri = 0.0;
         for &([l0, l1, l2], w) in rule.nodes() {
-            let x = o * l0 + b * l1 + c * l2;
-            let mut sum = 0.0;
-            for m in 0..to.len() {
-                sum += edge_term(x, n, to.vertex(m), to.vertex((m + 1) % to.len()));
-            }
-            tri += w * sum.abs();
+            tri += w * point_to_poly(o * l0 + b * l1 + c * l2, n, to);
         }
         *evaluations += (rule.nodes().len() * to.len()) as u64;
         total += area * tri;

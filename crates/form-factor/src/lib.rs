@@ -21,8 +21,8 @@ mod estimate;
 mod polygon;
 
 pub use contour::{ContourOptions, MAX_ORDER};
-use estimate::PairGeometry;
 pub use estimate::{point_to_polygon, Estimator, TriangleRule, MIN_TOLERANCE};
+use estimate::{Choice, PairGeometry};
 use glam::DVec3;
 use mesher::ElementMesh;
 use polygon::Poly;
@@ -176,18 +176,13 @@ impl<'a> FormFactors<'a> {
                 (v * scale, evaluations, Method::PointPoint)
             }
             Estimator::Auto { tolerance } => {
-                if tolerance < MIN_TOLERANCE {
-                    let (v, e) = self.contour(f);
-                    return (v, e, Method::Contour);
-                }
                 let g = PairGeometry::new(&f.a, normals[0], &f.b, normals[1]);
-                if g.point_point_bound() <= tolerance {
-                    let v = estimate::point_point(&g, normals[0], normals[1], &mut evaluations);
-                    return (v * scale, evaluations, Method::PointPoint);
-                }
-                // Cheapest rule first (cost grows with the points per triangle).
-                for rule in TriangleRule::ALL {
-                    if g.point_polygon_bound(rule) <= tolerance {
+                match estimate::choose(&g, [&f.a, &f.b], tolerance) {
+                    Choice::PointPoint => {
+                        let v = estimate::point_point(&g, normals[0], normals[1], &mut evaluations);
+                        (v * scale, evaluations, Method::PointPoint)
+                    }
+                    Choice::PointPolygon(rule) => {
                         let v = estimate::point_polygon(
                             &g,
                             [&f.a, &f.b],
@@ -195,11 +190,18 @@ impl<'a> FormFactors<'a> {
                             rule,
                             &mut evaluations,
                         );
-                        return (v * scale, evaluations, Method::PointPolygon);
+                        (v * scale, evaluations, Method::PointPolygon)
+                    }
+                    choice @ (Choice::Gauss(_) | Choice::Near) => {
+                        let options = estimate::contour_options(choice).unwrap_or(self.options);
+                        let (v, e) = self.contour_with(f, &options);
+                        (v, e, Method::Contour)
+                    }
+                    Choice::Exact => {
+                        let (v, e) = self.contour(f);
+                        (v, e, Method::Contour)
                     }
                 }
-                let (v, e) = self.contour(f);
-                (v, e, Method::Contour)
             }
         }
     }
@@ -244,13 +246,17 @@ impl<'a> FormFactors<'a> {
 
     /// Eq. 13 over the (clipped) contours: `A_i F_ij` in world units, and kernel evaluations.
     fn contour(&self, f: &Facing) -> (f64, u64) {
+        self.contour_with(f, &self.options)
+    }
+
+    fn contour_with(&self, f: &Facing, options: &ContourOptions) -> (f64, u64) {
         let mut evaluations = 0;
         let mut sum = 0.0;
         for a in 0..f.a.len() {
             let (p0, p1) = (f.a.vertex(a), f.a.vertex((a + 1) % f.a.len()));
             for b in 0..f.b.len() {
                 let (q0, q1) = (f.b.vertex(b), f.b.vertex((b + 1) % f.b.len()));
-                sum += contour::edge_pair(p0, p1, q0, q1, &self.options, &mut evaluations);
+                sum += contour::edge_pair(p0, p1, q0, q1, options, &mut evaluations);
             }
         }
         // Eq. 13 with both contours counter-clockwise about their own normals. Quadrature

@@ -41,7 +41,7 @@ impl Quality {
             },
             Quality::High => Preset {
                 elements_per_diagonal: 32.0,
-                estimator: Estimator::Auto { tolerance: 1e-5 },
+                estimator: Estimator::Auto { tolerance: 1e-4 },
                 visibility_samples: 961,
             },
         }

@@ -44,25 +44,35 @@ pub struct Row {
     pub by_method: [u64; 3],
     pub element: Errors,
     pub same_mesh: Option<Errors>,
+    /// Cube: max relative error of each wall's mean radiosity against the Richardson
+    /// extrapolation of the exact solutions at the reference size and half of it.
+    pub wall_mean: Option<f64>,
     pub scan_flat: Option<Errors>,
     pub scan_smooth: Option<Errors>,
 }
 
 struct Options {
     quick: bool,
+    /// Also sweep the Cornell box (the slow part: shadow rays).
+    cornell: bool,
+    /// Elements per wall of the cube's exact reference.
+    cube_reference: u32,
     out: PathBuf,
     doc: Option<PathBuf>,
 }
 
 fn main() -> Result<()> {
-    let options = parse_args()?;
+    run(&parse_args()?)
+}
+
+fn run(options: &Options) -> Result<()> {
     std::fs::create_dir_all(&options.out)
         .with_context(|| format!("creating {}", options.out.display()))?;
     let root = workspace_root();
     let cube = Scene::load("cube", &root.join("fixtures/cube.gltf"))?;
     let mut rows = Vec::new();
-    let cube_summary = cube_sweep(&cube, &options, &mut rows)?;
-    let cornell_summary = if options.quick {
+    let cube_summary = cube_sweep(&cube, options, &mut rows)?;
+    let cornell_summary = if options.quick || !options.cornell {
         None
     } else {
         let cornell = Scene::load("cornell", &root.join("fixtures/cornell.gltf"))?;
@@ -124,6 +134,8 @@ fn parse_args() -> Result<Options> {
     let root = workspace_root();
     let mut options = Options {
         quick: false,
+        cornell: true,
+        cube_reference: 48,
         out: root.join("docs/accuracy"),
         doc: Some(root.join("docs/accuracy.md")),
     };
@@ -134,10 +146,19 @@ fn parse_args() -> Result<Options> {
             "--out" => options.out = args.next().context("--out needs a directory")?.into(),
             "--doc" => options.doc = Some(args.next().context("--doc needs a file")?.into()),
             "--no-doc" => options.doc = None,
+            "--cube-only" => options.cornell = false,
+            "--cube-reference" => {
+                options.cube_reference = args
+                    .next()
+                    .and_then(|n| n.parse().ok())
+                    .context("--cube-reference needs a number of elements per wall")?
+            }
             "-h" | "--help" => {
                 println!(
-                    "usage: accuracy-report [--quick] [--out DIR] [--doc FILE | --no-doc]\n\
-                     defaults: --out docs/accuracy --doc docs/accuracy.md (workspace root)"
+                    "usage: accuracy-report [--quick] [--cube-only] [--cube-reference N] [--out DIR] \
+                     [--doc FILE | --no-doc]\n\
+                     defaults: --cube-reference 48 --out docs/accuracy --doc docs/accuracy.md \
+                     (workspace root)"
                 );
                 std::process::exit(0);
             }
@@ -149,7 +170,11 @@ fn parse_args() -> Result<Options> {
 
 fn workspace_root() -> PathBuf {
     let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
-    manifest.ancestors().nth(2).unwrap_or(manifest).to_path_buf()
+    manifest
+        .ancestors()
+        .nth(2)
+        .unwrap_or(manifest)
+        .to_path_buf()
 }
 
 fn contour() -> ContourOptions {
@@ -202,15 +227,27 @@ pub struct CornellSummary {
 
 fn cube_sweep(cube: &Scene, options: &Options, rows: &mut Vec<Row>) -> Result<CubeSummary> {
     let quick = options.quick;
-    let reference_n = if quick { 8 } else { 24 };
+    let reference_n = if quick { 8 } else { options.cube_reference };
     eprintln!("cube: exact reference at {reference_n} x {reference_n} per wall ...");
     let ref_mesh = mesher::mesh(&cube.polygons, Subdivision::Count(reference_n))?;
     let ref_b = measure::closed_form_solution(cube, &ref_mesh)?;
     let reference = Field::new(&ref_mesh, &ref_b);
+    // Wall means converge like h² (see the presets test): extrapolate from n and n/2.
+    let half_mesh = mesher::mesh(&cube.polygons, Subdivision::Count(reference_n / 2))?;
+    let half_b = measure::closed_form_solution(cube, &half_mesh)?;
+    let extrapolated: Vec<[f64; 3]> = measure::polygon_means(&half_mesh, &half_b)
+        .iter()
+        .zip(measure::polygon_means(&ref_mesh, &ref_b))
+        .map(|(a, b)| [0, 1, 2].map(|k| (4.0 * b[k] - a[k]) / 3.0))
+        .collect();
     let scanline = Scanline::cube(cube, 600)?;
     let ref_scan = scanline.sample(&reference, true);
 
-    let subdivs: &[u32] = if quick { &[1, 2, 4] } else { &[1, 2, 3, 4, 6, 8, 12] };
+    let subdivs: &[u32] = if quick {
+        &[1, 2, 4]
+    } else {
+        &[1, 2, 3, 4, 6, 8, 12]
+    };
     let focus = if quick { 4 } else { 8 };
     let mut settings = Vec::new();
     for &n in subdivs {
@@ -313,7 +350,7 @@ fn cube_sweep(cube: &Scene, options: &Options, rows: &mut Vec<Row>) -> Result<Cu
         eprintln!("cube: {} / {}", s.group, s.label);
         let run = measure::bake(cube, &s)?;
         let field = Field::new(&run.mesh, &run.b);
-        let element = measure::element_errors(&field, &reference);
+        let element = measure::element_errors(&field, &reference, cube);
         let n = run.mesh.elements.len();
         let exact = match exact_cache.iter().find(|(m, _)| *m == n) {
             Some((_, b)) => b.clone(),
@@ -351,7 +388,20 @@ fn cube_sweep(cube: &Scene, options: &Options, rows: &mut Vec<Row>) -> Result<Cu
                 });
             }
         }
-        rows.push(row(cube.name, s, &run, element, Some(same), Some(scan_flat), Some(scan_smooth)));
+        let mut r = row(
+            cube.name,
+            s,
+            &run,
+            element,
+            Some(same),
+            Some(scan_flat),
+            Some(scan_smooth),
+        );
+        r.wall_mean = Some(measure::max_relative(
+            &measure::polygon_means(&run.mesh, &run.b),
+            &extrapolated,
+        ));
+        rows.push(r);
     }
     if let Some(full) = full_solution {
         curves.bounces.push(plot::Curve {
@@ -367,7 +417,7 @@ fn cube_sweep(cube: &Scene, options: &Options, rows: &mut Vec<Row>) -> Result<Cu
     for n in [reference_n / 4, reference_n / 2] {
         let mesh = mesher::mesh(&cube.polygons, Subdivision::Count(n))?;
         let b = measure::closed_form_solution(cube, &mesh)?;
-        let e = measure::element_errors(&Field::new(&mesh, &b), &reference);
+        let e = measure::element_errors(&Field::new(&mesh, &b), &reference, cube);
         reference_convergence.push((n, e));
     }
     Ok(CubeSummary {
@@ -401,6 +451,7 @@ fn row(
         by_method: [m.contour, m.point_polygon, m.point_point],
         element,
         same_mesh,
+        wall_mean: None,
         scan_flat,
         scan_smooth,
     }
@@ -425,11 +476,12 @@ fn cornell_sweep(cornell: &Scene, rows: &mut Vec<Row>) -> Result<CornellSummary>
     let fine = reference_setting(24.0);
     let reference_run = measure::bake_once(cornell, &fine)?;
     let reference = Field::new(&reference_run.mesh, &reference_run.b);
+    let reference_means = measure::polygon_means(&reference_run.mesh, &reference_run.b);
     let mut convergence = Vec::new();
     for per_diagonal in [12.0, 16.0] {
         let s = reference_setting(per_diagonal);
         let run = measure::bake_once(cornell, &s)?;
-        let e = measure::element_errors(&Field::new(&run.mesh, &run.b), &reference);
+        let e = measure::element_errors(&Field::new(&run.mesh, &run.b), &reference, cornell);
         convergence.push((s.label.clone(), run.mesh.elements.len(), e));
     }
 
@@ -480,8 +532,13 @@ fn cornell_sweep(cornell: &Scene, rows: &mut Vec<Row>) -> Result<CornellSummary>
     for s in settings {
         eprintln!("cornell: {} / {}", s.group, s.label);
         let run = measure::bake(cornell, &s)?;
-        let element = measure::element_errors(&Field::new(&run.mesh, &run.b), &reference);
-        rows.push(row(cornell.name, s, &run, element, None, None, None));
+        let element = measure::element_errors(&Field::new(&run.mesh, &run.b), &reference, cornell);
+        let mut r = row(cornell.name, s, &run, element, None, None, None);
+        r.wall_mean = Some(measure::max_relative(
+            &measure::polygon_means(&run.mesh, &run.b),
+            &reference_means,
+        ));
+        rows.push(r);
     }
     Ok(CornellSummary {
         reference_label: fine.label.clone(),
@@ -489,4 +546,95 @@ fn cornell_sweep(cornell: &Scene, rows: &mut Vec<Row>) -> Result<CornellSummary>
         reference_time_s: reference_run.time_s,
         convergence,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The presets are ordered on the cube: draft does less work (kernel evaluations) and is
+    /// less accurate than normal, and normal than high. Accuracy: each wall's mean radiosity
+    /// (per band) against the Richardson extrapolation of the exact closed-form solutions at
+    /// 12 and 24 elements per wall (their error falls like h²: checked here too).
+    #[test]
+    fn presets_are_ordered_on_the_cube() {
+        let cube = Scene::load("cube", &workspace_root().join("fixtures/cube.gltf")).unwrap();
+        let exact_means = |n| {
+            let mesh = mesher::mesh(&cube.polygons, Subdivision::Count(n)).unwrap();
+            let b = measure::closed_form_solution(&cube, &mesh).unwrap();
+            measure::polygon_means(&mesh, &b)
+        };
+        let (m6, m12, m24) = (exact_means(6), exact_means(12), exact_means(24));
+        let extrapolated: Vec<[f64; 3]> = m12
+            .iter()
+            .zip(&m24)
+            .map(|(a, b)| [0, 1, 2].map(|k| (4.0 * b[k] - a[k]) / 3.0))
+            .collect();
+        // Second order: halving h divides the error by about 4.
+        let (e6, e12) = (
+            measure::max_relative(&m6, &extrapolated),
+            measure::max_relative(&m12, &extrapolated),
+        );
+        eprintln!("exact 6: {e6:.3e}, exact 12: {e12:.3e}");
+        assert!(e6 / e12 > 3.0 && e6 / e12 < 5.5, "{e6:e} / {e12:e}");
+        let mut last: Option<(u64, f64)> = None;
+        for q in Quality::ALL {
+            let p = q.preset();
+            let mut s = setting(
+                "preset",
+                q.name().into(),
+                Subdivision::MaxSize(p.max_element_size(&cube.polygons)),
+                p.estimator,
+            );
+            s.samples = p.visibility_samples;
+            let run = measure::bake_once(&cube, &s).unwrap();
+            let means = measure::polygon_means(&run.mesh, &run.b);
+            let error = measure::max_relative(&means, &extrapolated);
+            let work = run.stats.evaluations;
+            eprintln!(
+                "{}: {work} evaluations, wall-mean error {error:.3e}",
+                q.name()
+            );
+            if let Some((last_work, last_error)) = last {
+                assert!(work > last_work, "{}: {work} vs {last_work}", q.name());
+                assert!(
+                    error < last_error,
+                    "{}: {error:e} vs {last_error:e}",
+                    q.name()
+                );
+            }
+            last = Some((work, error));
+        }
+    }
+
+    /// `--quick` writes the CSV (one row per setting, finite numbers), both plots and the
+    /// document.
+    #[test]
+    fn quick_report_writes_every_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let options = Options {
+            quick: true,
+            cornell: false,
+            cube_reference: 8,
+            out: dir.path().join("img"),
+            doc: Some(dir.path().join("accuracy.md")),
+        };
+        run(&options).unwrap();
+        let csv = std::fs::read_to_string(options.out.join("accuracy.csv")).unwrap();
+        let lines: Vec<&str> = csv.lines().collect();
+        assert!(lines.len() > 30, "{} rows", lines.len());
+        for line in &lines[1..] {
+            assert!(!line.contains("NaN") && !line.contains("inf"), "{line}");
+        }
+        for png in [
+            "cube-pareto.png",
+            "cube-scanline-shading.png",
+            "cube-scanline-bounces.png",
+        ] {
+            let image = image::open(options.out.join(png)).unwrap();
+            assert!(image.width() >= 1000, "{png}");
+        }
+        let doc = std::fs::read_to_string(dir.path().join("accuracy.md")).unwrap();
+        assert!(doc.contains("img/cube-pareto.png") && doc.contains("★"));
+    }
 }

@@ -118,7 +118,8 @@ pub fn bake_once(scene: &Scene, setting: &Setting) -> Result<Run> {
     let ff_s = ff_start.elapsed().as_secs_f64();
     let solve_start = Instant::now();
     let (rho, e) = scene.element_values(&mesh);
-    let f = DenseMatrix::new(dense.n, &dense.data)?.with_accuracy(setting.estimator.row_sum_accuracy());
+    let f =
+        DenseMatrix::new(dense.n, &dense.data)?.with_accuracy(setting.estimator.row_sum_accuracy());
     let solution = match setting.solve {
         Solve::Direct => solver::solve_direct(&f, &rho, &e)?,
         Solve::Bounces(k) => solver::solve_bounces(&f, &rho, &e, k)?,
@@ -141,8 +142,12 @@ pub fn bake_once(scene: &Scene, setting: &Setting) -> Result<Run> {
 /// The exact solution of `mesh` from closed-form rectangle form factors (the paper's cube:
 /// every element an axis-aligned rectangle), solved by GMRES to a residual of 1e-13.
 pub fn closed_form_solution(scene: &Scene, mesh: &ElementMesh) -> Result<Vec<[f64; 3]>> {
-    let data = reference::dense_form_factors(mesh)
-        .ok_or_else(|| anyhow!("{}: not every element is an axis-aligned rectangle", scene.name))?;
+    let data = reference::dense_form_factors(mesh).ok_or_else(|| {
+        anyhow!(
+            "{}: not every element is an axis-aligned rectangle",
+            scene.name
+        )
+    })?;
     let (rho, e) = scene.element_values(mesh);
     let f = DenseMatrix::new(mesh.elements.len(), &data)?;
     let options = IterativeOptions {
@@ -233,6 +238,21 @@ fn weights(c: &[DVec3], normal: DVec3, p: DVec3) -> ([f64; 4], f64) {
         let outside = (-l0).max(-l1).max(-l2);
         return ([l0, l1, l2, 0.0], outside);
     }
+    let (u, v) = inverse_bilinear(c, normal, p);
+    let outside = (-u).max(u - 1.0).max(-v).max(v - 1.0);
+    (
+        [(1.0 - u) * (1.0 - v), u * (1.0 - v), u * v, (1.0 - u) * v],
+        outside,
+    )
+}
+
+/// Parameters (u, v) of `p` in the bilinear quad `c` (u along c0→c1, v along c0→c3), by
+/// Newton's method in the quad's plane.
+fn inverse_bilinear(c: &[DVec3], normal: DVec3, p: DVec3) -> (f64, f64) {
+    let e1 = (c[1] - c[0]).normalize_or_zero();
+    let e2 = normal.cross(e1);
+    let to2 = |x: DVec3| glam::DVec2::new((x - c[0]).dot(e1), (x - c[0]).dot(e2));
+    let q = to2(p);
     let (a, b, d) = (to2(c[1]), to2(c[2]), to2(c[3]));
     // P(u, v) = u a + v d + u v (b − a − d), corner 0 at the origin.
     let k = b - a - d;
@@ -252,11 +272,31 @@ fn weights(c: &[DVec3], normal: DVec3, p: DVec3) -> ([f64; 4], f64) {
             break;
         }
     }
-    let outside = (-u).max(u - 1.0).max(-v).max(v - 1.0);
-    (
-        [(1.0 - u) * (1.0 - v), u * (1.0 - v), u * v, (1.0 - u) * v],
-        outside,
-    )
+    (u, v)
+}
+
+/// The parameter rectangle `[u0, u1] × [v0, v1]` an element covers in its quad polygon's
+/// bilinear map (mesher grids are uniform in these parameters).
+fn parameter_rect(polygon: &Polygon, mesh: &ElementMesh, element: usize) -> [f64; 4] {
+    let e = &mesh.elements[element];
+    let mut r = [
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for &i in e.corner_indices() {
+        let (u, v) = inverse_bilinear(&polygon.vertices, polygon.normal, mesh.vertices[i as usize]);
+        r = [r[0].min(u), r[1].max(u), r[2].min(v), r[3].max(v)];
+    }
+    r
+}
+
+/// `sum += w · v`, band by band.
+fn add(sum: &mut [f64; 3], w: f64, v: &[f64; 3]) {
+    for (s, x) in sum.iter_mut().zip(v) {
+        *s += w * x;
+    }
 }
 
 /// Max and area-weighted RMS relative error over elements and bands.
@@ -266,52 +306,81 @@ pub struct Errors {
     pub rms: f64,
 }
 
-/// Sub-samples per reference element side for [`element_errors`].
+/// Sub-samples per reference element side on triangles for [`element_errors`].
 const SUBSAMPLES: usize = 4;
 
-/// Relative error of each element of `run` against the area average of the reference over it:
-/// each reference element is cut into 4 × 4 pieces (bilinear parameters; a triangle counts as
-/// one piece at its centroid) and each piece is credited to the element containing its centre.
-/// Exact when the reference grid refines this one (the cube's 24 × 24 refines 1, 2, 3, 4, 6, 8,
-/// 12); otherwise the average is off by at most a quarter of a reference element's variation.
-pub fn element_errors(coarse: &Field, reference: &Field) -> Errors {
+/// Relative error of each element of `coarse` against the area average of the reference over
+/// it. On quads the overlap of every coarse and reference element is exact in the polygon's
+/// bilinear parameters (exact area for parallelograms, like every quad of the cube and the
+/// Cornell box); on triangles each reference element is cut into 4 × 4 pieces credited to the
+/// element containing their centres.
+pub fn element_errors(coarse: &Field, reference: &Field, scene: &Scene) -> Errors {
+    let polygons = &scene.polygons;
     let n = coarse.mesh.elements.len();
     let mut sum = vec![[0.0f64; 3]; n];
     let mut area = vec![0.0f64; n];
-    for (k, e) in reference.mesh.elements.iter().enumerate() {
-        let c: Vec<DVec3> = e
-            .corner_indices()
-            .iter()
-            .map(|&i| reference.mesh.vertices[i as usize])
-            .collect();
-        let pieces: Vec<(DVec3, f64)> = if c.len() == 4 {
+    for (p, polygon) in polygons.iter().enumerate() {
+        let (Some(cp), Some(rp)) = (coarse.mesh.patches.get(p), reference.mesh.patches.get(p))
+        else {
+            continue;
+        };
+        if polygon.vertices.len() == 4 {
+            let rects: Vec<(usize, [f64; 4])> = cp
+                .elements
+                .clone()
+                .map(|c| (c as usize, parameter_rect(polygon, coarse.mesh, c as usize)))
+                .collect();
+            for k in rp.elements.clone() {
+                let k = k as usize;
+                let r = parameter_rect(polygon, reference.mesh, k);
+                let whole = (r[1] - r[0]) * (r[3] - r[2]);
+                if whole <= 0.0 {
+                    continue;
+                }
+                for &(c, q) in &rects {
+                    let du = r[1].min(q[1]) - r[0].max(q[0]);
+                    let dv = r[3].min(q[3]) - r[2].max(q[2]);
+                    if du > 0.0 && dv > 0.0 {
+                        let w = reference.mesh.elements[k].area * (du * dv / whole);
+                        area[c] += w;
+                        add(&mut sum[c], w, &reference.b[k]);
+                    }
+                }
+            }
+            continue;
+        }
+        for k in rp.elements.clone() {
+            let k = k as usize;
+            let e = &reference.mesh.elements[k];
+            let c: Vec<DVec3> = e
+                .corner_indices()
+                .iter()
+                .map(|&i| reference.mesh.vertices[i as usize])
+                .collect();
             let m = SUBSAMPLES;
             let w = e.area / (m * m) as f64;
-            (0..m * m)
-                .map(|q| {
-                    let (u, v) = (
-                        ((q % m) as f64 + 0.5) / m as f64,
-                        ((q / m) as f64 + 0.5) / m as f64,
-                    );
-                    let p = c[0] * ((1.0 - u) * (1.0 - v))
-                        + c[1] * (u * (1.0 - v))
-                        + c[2] * (u * v)
-                        + c[3] * ((1.0 - u) * v);
-                    (p, w)
-                })
-                .collect()
-        } else {
-            vec![(e.centroid, e.area)]
-        };
-        for (p, w) in pieces {
-            if let Some((c, _)) = coarse.locate(e.polygon as usize, p) {
-                area[c] += w;
-                for band in 0..3 {
-                    sum[c][band] += w * reference.b[k][band];
+            // The m² sub-triangles' centroids of the regular split (upright and inverted).
+            let mut pieces = Vec::with_capacity(m * m);
+            for i in 0..m {
+                for j in 0..m - i {
+                    let at = |a: f64, b: f64| {
+                        c[0] + (c[1] - c[0]) * (a / m as f64) + (c[2] - c[0]) * (b / m as f64)
+                    };
+                    pieces.push(at(i as f64 + 1.0 / 3.0, j as f64 + 1.0 / 3.0));
+                    if i + j + 1 < m {
+                        pieces.push(at(i as f64 + 2.0 / 3.0, j as f64 + 2.0 / 3.0));
+                    }
+                }
+            }
+            for x in pieces {
+                if let Some((c, _)) = coarse.locate(p, x) {
+                    area[c] += w;
+                    add(&mut sum[c], w, &reference.b[k]);
                 }
             }
         }
     }
+    let floor = dark_floor(reference, scene);
     let (mut max, mut sq, mut weight) = (0.0f64, 0.0, 0.0);
     for (c, e) in coarse.mesh.elements.iter().enumerate() {
         if area[c] == 0.0 {
@@ -319,8 +388,8 @@ pub fn element_errors(coarse: &Field, reference: &Field) -> Errors {
         }
         for band in 0..3 {
             let r = sum[c][band] / area[c];
-            if r > 0.0 {
-                let err = (coarse.b[c][band] - r).abs() / r;
+            let err = (coarse.b[c][band] - r).abs() / r.max(floor[band]);
+            if err.is_finite() {
                 max = max.max(err);
                 sq += e.area * err * err;
                 weight += e.area;
@@ -329,8 +398,60 @@ pub fn element_errors(coarse: &Field, reference: &Field) -> Errors {
     }
     Errors {
         max,
-        rms: if weight > 0.0 { (sq / weight).sqrt() } else { 0.0 },
+        rms: if weight > 0.0 {
+            (sq / weight).sqrt()
+        } else {
+            0.0
+        },
     }
+}
+
+/// Per band, 5% of the area-weighted mean radiosity of the reference's non-emitting elements:
+/// errors are relative to the reference value but never to less than this, so elements in full
+/// shadow (b ≈ 0, e.g. the floor under the Cornell box's blocks) count by their absolute error
+/// instead of turning a difference of 1e-4 into 100%.
+pub fn dark_floor(field: &Field, scene: &Scene) -> [f64; 3] {
+    let mut sum = [0.0; 3];
+    let mut area = 0.0;
+    for (e, b) in field.mesh.elements.iter().zip(field.b) {
+        if scene.emission[e.polygon as usize].iter().any(|&x| x > 0.0) {
+            continue;
+        }
+        area += e.area;
+        for band in 0..3 {
+            sum[band] += e.area * b[band];
+        }
+    }
+    sum.map(|s| if area > 0.0 { 0.05 * s / area } else { 0.0 })
+}
+
+/// The area-weighted mean of `b` over each polygon (the power each wall sends out, over its
+/// area): a quantity every mesh of the same polygons can be compared on directly.
+pub fn polygon_means(mesh: &ElementMesh, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    let mut sum = vec![[0.0; 3]; mesh.patches.len()];
+    let mut area = vec![0.0; mesh.patches.len()];
+    for (e, v) in mesh.elements.iter().zip(b) {
+        let p = e.polygon as usize;
+        area[p] += e.area;
+        add(&mut sum[p], e.area, v);
+    }
+    sum.iter()
+        .zip(&area)
+        .map(|(s, &a)| s.map(|x| if a > 0.0 { x / a } else { 0.0 }))
+        .collect()
+}
+
+/// Largest relative difference over polygons and bands.
+pub fn max_relative(values: &[[f64; 3]], reference: &[[f64; 3]]) -> f64 {
+    let mut worst = 0.0f64;
+    for (v, r) in values.iter().zip(reference) {
+        for band in 0..3 {
+            if r[band] > 0.0 {
+                worst = worst.max((v[band] - r[band]).abs() / r[band]);
+            }
+        }
+    }
+    worst
 }
 
 /// Relative error of same-mesh solutions, element by element.
@@ -348,7 +469,11 @@ pub fn same_mesh_errors(mesh: &ElementMesh, b: &[[f64; 3]], exact: &[[f64; 3]]) 
     }
     Errors {
         max,
-        rms: if weight > 0.0 { (sq / weight).sqrt() } else { 0.0 },
+        rms: if weight > 0.0 {
+            (sq / weight).sqrt()
+        } else {
+            0.0
+        },
     }
 }
 

@@ -1,0 +1,100 @@
+//! `--quality draft|normal|high` through the binary: each preset sets its knobs, explicit
+//! options override them, and the presets are ordered by the work they do on the cube. (Their
+//! accuracy ordering against the exact solution is tested in `tools/accuracy-report`, which
+//! owns the reference comparison.)
+
+mod common;
+
+use common::{bake, fixture};
+use exporter::report::{read_report, Report};
+
+fn bake_cube(args: &[&str]) -> Report {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (out, report) = (dir.path().join("out.glb"), dir.path().join("r.json"));
+    let cube = fixture("cube.gltf");
+    let mut command: Vec<&std::ffi::OsStr> = vec![
+        cube.as_os_str(),
+        out.as_os_str(),
+        "--report".as_ref(),
+        report.as_os_str(),
+        "--target".as_ref(),
+        "vertex".as_ref(),
+        "--quiet".as_ref(),
+    ];
+    command.extend(args.iter().map(std::ffi::OsStr::new));
+    let run = bake(&command);
+    assert_eq!(run.code, Some(0), "{run:#?}");
+    read_report(&report).expect("report")
+}
+
+#[test]
+fn presets_set_their_knobs_and_order_the_work() {
+    let mut last_evaluations = 0;
+    let mut last_elements = 0;
+    for (quality, elements_per_wall, tolerance, samples) in [
+        ("draft", 5, 1e-2, 49),
+        ("normal", 10, 1e-3, 289),
+        ("high", 19, 1e-4, 961),
+    ] {
+        let r = bake_cube(&["--quality", quality]);
+        let o = &r.options;
+        assert_eq!(o["quality"], quality);
+        assert_eq!(o["ff_estimator"], "auto");
+        assert_eq!(o["ff_tolerance"], tolerance);
+        assert_eq!(o["visibility_samples"], samples);
+        assert_eq!(r.counts.elements, 6 * elements_per_wall * elements_per_wall);
+        // The cube needs no shadow rays at any quality.
+        assert_eq!(r.counts.rays_cast, 0);
+        assert!(r.counts.kernel_evaluations > last_evaluations, "{quality}");
+        assert!(r.counts.elements > last_elements);
+        assert_eq!(
+            r.counts.pairs_contour + r.counts.pairs_point_polygon + r.counts.pairs_point_point,
+            r.counts.pairs_evaluated,
+            "{quality}: every integrated pair is counted by its estimator"
+        );
+        last_evaluations = r.counts.kernel_evaluations;
+        last_elements = r.counts.elements;
+    }
+}
+
+#[test]
+fn explicit_options_override_the_preset() {
+    let r = bake_cube(&[
+        "--quality",
+        "draft",
+        "--ff-estimator",
+        "contour",
+        "--subdiv",
+        "3",
+    ]);
+    assert_eq!(r.options["quality"], "draft");
+    assert_eq!(r.options["ff_estimator"], "contour");
+    assert_eq!(r.counts.elements, 54);
+    assert_eq!(r.counts.pairs_contour, r.counts.pairs_evaluated);
+
+    let r = bake_cube(&["--ff-tolerance", "0.05"]);
+    assert_eq!(r.options["ff_estimator"], "auto");
+    assert_eq!(r.options["ff_tolerance"], 0.05);
+
+    let r = bake_cube(&["--ff-estimator", "point-polygon", "--ff-points", "7"]);
+    assert_eq!(r.options["ff_points"], 7);
+    assert_eq!(r.counts.pairs_point_polygon, r.counts.pairs_evaluated);
+}
+
+/// The default bake is `--quality normal`, and `auto` keeps the cube within its tolerance of
+/// the exact contour integral (element radiosity, relative).
+#[test]
+fn default_auto_estimator_stays_close_to_the_contour_integral() {
+    let auto = bake_cube(&[]);
+    let exact = bake_cube(&["--ff-estimator", "contour"]);
+    assert_eq!(auto.options["quality"], "normal");
+    let mut worst = 0.0f64;
+    for (a, e) in auto.elements.iter().zip(&exact.elements) {
+        for band in 0..3 {
+            worst = worst.max((a.b[band] - e.b[band]).abs() / e.b[band]);
+        }
+    }
+    // Each F_ij within 1e-3 relative; b inherits at most that (measured 3.4e-6).
+    assert!(worst < 1e-3, "{worst:e}");
+    assert!(auto.counts.kernel_evaluations < exact.counts.kernel_evaluations);
+}
