@@ -34,7 +34,7 @@ pub struct Cli {
 
     /// The accuracy–time trade in one knob: element size, form-factor estimator and
     /// tolerance, and shadow rays, as measured in docs/accuracy.md. `draft`: elements of
-    /// diagonal/8, --ff-tolerance 1e-2, 49 rays; `normal`: diagonal/16, 1e-3, 289 rays;
+    /// diagonal/8, --ff-tolerance 1e-2, 49 rays; `normal`: diagonal/16, 1e-3, 121 rays;
     /// `high`: diagonal/32, 1e-4, 961 rays. Options given explicitly override the preset.
     #[arg(long, value_enum, default_value_t = QualityArg::Normal)]
     pub quality: QualityArg,
@@ -101,8 +101,9 @@ pub struct Cli {
     /// the contour integral.
     #[arg(long, value_name = "T", value_parser = parse_tolerance)]
     pub ff_tolerance: Option<f64>,
-    /// `point-polygon` estimator: quadrature points per triangle of the element (a quad is
-    /// two triangles): 1 (centroid), 3 (degree 2) or 7 (degree 5).
+    /// `point-polygon` estimator: quadrature points on the smaller element of each pair:
+    /// 1 (its centroid), or 3 (degree 2) or 7 (degree 5) per triangle of its fan (a quad is two
+    /// triangles).
     #[arg(long, value_name = "N", default_value_t = 3,
           value_parser = clap::builder::PossibleValuesParser::new(["1", "3", "7"])
               .map(|s| s.parse::<u32>().unwrap_or(3)))]
@@ -134,7 +135,7 @@ pub struct Cli {
     /// a convex enclosure such as the paper's cube) keep the exact form factor and cast no
     /// ray. Measured on the Cornell box: 49 / 121 / 289 / 961 rays give an rms error of the
     /// visible fraction of 0.030 / 0.016 / 0.009 / 0.005. [default: from --quality: 49,
-    /// 289, 961]
+    /// 121, 961]
     #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub visibility_samples: Option<u32>,
 

@@ -33,7 +33,7 @@ fn presets_set_their_knobs_and_order_the_work() {
     let mut last_elements = 0;
     for (quality, elements_per_wall, tolerance, samples) in [
         ("draft", 5, 1e-2, 49),
-        ("normal", 10, 1e-3, 289),
+        ("normal", 10, 1e-3, 121),
         ("high", 19, 1e-4, 961),
     ] {
         let r = bake_cube(&["--quality", quality]);

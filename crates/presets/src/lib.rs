@@ -37,7 +37,7 @@ impl Quality {
             Quality::Normal => Preset {
                 elements_per_diagonal: 16.0,
                 estimator: Estimator::Auto { tolerance: 1e-3 },
-                visibility_samples: 289,
+                visibility_samples: 121,
             },
             Quality::High => Preset {
                 elements_per_diagonal: 32.0,
