@@ -158,8 +158,13 @@ pub fn edge_pair(
                 c + q * (m as f64 / n as f64),
                 c + q * ((m + 1) as f64 / n as f64),
             );
-            let gap = segment_distance(s0, s1, t0, t1);
             let longer = (lp.max(lq)) / n as f64;
+            // The paper's fixed rule (no near pairs, no order raise) needs no distance.
+            let gap = if opts.near_ratio > 0.0 || opts.auto_order {
+                segment_distance(s0, s1, t0, t1)
+            } else {
+                f64::INFINITY
+            };
             sum += if gap >= opts.near_ratio * longer {
                 let order = if opts.auto_order {
                     opts.order.max(far_order(gap / longer))

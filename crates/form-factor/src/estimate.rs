@@ -199,21 +199,24 @@ pub(crate) fn choose(g: &PairGeometry, polys: [&Poly; 2], tolerance: f64) -> Cho
             Choice::PointPolygon(rule),
         );
     }
-    let pairs = non_perpendicular_edge_pairs(polys) as f64;
+    // Counting the non-perpendicular edge pairs (the contour rules' cost) takes 8
+    // normalisations: only when some contour rule's bound can meet the tolerance.
     let ratio = g.ratio(0).min(g.ratio(1));
-    for (order, power, constant) in GAUSS_RULES {
-        consider(
-            constant * ratio.powi(-power) + GAUSS_FLOOR,
-            pairs * (order * order) as f64,
-            Choice::Gauss(order),
-        );
+    let gauss_bounds =
+        GAUSS_RULES.map(|(_, power, constant)| constant * ratio.powi(-power) + GAUSS_FLOOR);
+    let near_bound = NEAR_CONSTANT / ratio.max(1.0).powi(2) + GAUSS_FLOOR;
+    if gauss_bounds
+        .iter()
+        .chain([&near_bound])
+        .any(|&b| b <= tolerance)
+    {
+        let pairs = non_perpendicular_edge_pairs(polys) as f64;
+        for ((order, _, _), bound) in GAUSS_RULES.into_iter().zip(gauss_bounds) {
+            consider(bound, pairs * (order * order) as f64, Choice::Gauss(order));
+        }
+        // The semi-analytic segment pairs cost more: counted as twice the 3-point rule.
+        consider(near_bound, pairs * 18.0, Choice::Near);
     }
-    // The semi-analytic segment pairs cost more: counted as twice the 3-point rule.
-    consider(
-        NEAR_CONSTANT / ratio.max(1.0).powi(2) + GAUSS_FLOOR,
-        pairs * 18.0,
-        Choice::Near,
-    );
     best.1
 }
 
@@ -389,8 +392,9 @@ fn area_centroid(p: &Poly, n: DVec3) -> (f64, DVec3) {
 
 fn radius(p: &Poly, c: DVec3) -> f64 {
     (0..p.len())
-        .map(|k| p.vertex(k).distance(c))
+        .map(|k| p.vertex(k).distance_squared(c))
         .fold(0.0, f64::max)
+        .sqrt()
 }
 
 /// `A_a F_ab` (= `A_b F_ba`) by point-to-point at the centroids; 1 evaluation.
