@@ -220,18 +220,25 @@ pub(crate) fn choose(g: &PairGeometry, polys: [&Poly; 2], tolerance: f64) -> Cho
     best.1
 }
 
-/// The contour options of a [`Choice`] computed by the contour integral.
-pub(crate) fn contour_options(choice: Choice) -> Option<crate::ContourOptions> {
-    let fixed = |order, near_ratio| crate::ContourOptions {
-        segments: 1,
-        order,
-        auto_order: false,
-        near_ratio,
-    };
-    match choice {
-        Choice::Gauss(order) => Some(fixed(order, 0.0)),
-        Choice::Near => Some(fixed(3, NEAR_RATIO)),
-        _ => None,
+impl Choice {
+    /// The contour options a choice computed by the contour integral uses (`exact`: the
+    /// caller's, for [`Choice::Exact`]); `None` for the point estimators.
+    pub(crate) fn contour_options(
+        self,
+        exact: crate::ContourOptions,
+    ) -> Option<crate::ContourOptions> {
+        let fixed = |order, near_ratio| crate::ContourOptions {
+            segments: 1,
+            order,
+            auto_order: false,
+            near_ratio,
+        };
+        match self {
+            Choice::Gauss(order) => Some(fixed(order, 0.0)),
+            Choice::Near => Some(fixed(3, NEAR_RATIO)),
+            Choice::Exact => Some(exact),
+            Choice::PointPoint | Choice::PointPolygon(_) => None,
+        }
     }
 }
 
@@ -291,11 +298,7 @@ const SEVEN: [([f64; 3], f64); 7] = [
 /// `polygon` wholly in front of it (Lambert's closed form; see the module documentation).
 /// Exact for the unoccluded differential case.
 pub fn point_to_polygon(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
-    let mut sum = 0.0;
-    for k in 0..polygon.len() {
-        sum += edge_term(x, n, polygon[k], polygon[(k + 1) % polygon.len()]);
-    }
-    (sum / (2.0 * PI)).abs()
+    edge_sum(x, n, polygon) / (2.0 * PI)
 }
 
 /// γ_k n·(R_k × R_{k+1}) / |R_k × R_{k+1}|, with γ_k by atan2 (accurate at small and large
@@ -312,12 +315,13 @@ fn edge_term(x: DVec3, n: DVec3, p0: DVec3, p1: DVec3) -> f64 {
     }
 }
 
-/// `2π F_{dx→P}` for a polygon in front of x.
+/// `2π F_{dx→P}` for a polygon in front of x: the edge terms summed, sign dropped (it is
+/// fixed by the polygon's orientation seen from x).
 #[inline]
-fn point_to_poly(x: DVec3, n: DVec3, to: &Poly) -> f64 {
+fn edge_sum(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
     let mut sum = 0.0;
-    for m in 0..to.len() {
-        sum += edge_term(x, n, to.vertex(m), to.vertex((m + 1) % to.len()));
+    for k in 0..polygon.len() {
+        sum += edge_term(x, n, polygon[k], polygon[(k + 1) % polygon.len()]);
     }
     sum.abs()
 }
@@ -423,7 +427,7 @@ pub(crate) fn point_polygon(
     let (from, n, to) = (polys[s], normals[s], polys[1 - s]);
     if rule == TriangleRule::Centroid {
         *evaluations += to.len() as u64;
-        return g.area[s] * point_to_poly(g.centroid[s], n, to) / (2.0 * PI);
+        return g.area[s] * edge_sum(g.centroid[s], n, to.vertices()) / (2.0 * PI);
     }
     let o = from.vertex(0);
     let mut total = 0.0;
@@ -435,7 +439,7 @@ pub(crate) fn point_polygon(
         }
         let mut tri = 0.0;
         for &([l0, l1, l2], w) in rule.nodes() {
-            tri += w * point_to_poly(o * l0 + b * l1 + c * l2, n, to);
+            tri += w * edge_sum(o * l0 + b * l1 + c * l2, n, to.vertices());
         }
         *evaluations += (rule.nodes().len() * to.len()) as u64;
         total += area * tri;

@@ -154,56 +154,35 @@ impl<'a> FormFactors<'a> {
 
     /// `A_i F_ij` of a facing pair by the configured estimator.
     fn estimate(&self, i: usize, j: usize, f: &Facing) -> (f64, u64, Method) {
-        let normals = [self.mesh.elements[i].normal, self.mesh.elements[j].normal];
-        let mut evaluations = 0;
-        let scale = f.unit * f.unit;
-        let point_polygon = |rule, evaluations: &mut u64| {
-            let g = PairGeometry::new(&f.a, normals[0], &f.b, normals[1]);
-            estimate::point_polygon(&g, [&f.a, &f.b], normals, rule, evaluations) * scale
-        };
-        match self.estimator {
-            Estimator::Contour => {
-                let (g, e) = self.contour(f);
-                (g, e, Method::Contour)
-            }
-            Estimator::PointPolygon(rule) => {
-                let g = point_polygon(rule, &mut evaluations);
-                (g, evaluations, Method::PointPolygon)
-            }
-            Estimator::PointPoint => {
-                let g = PairGeometry::new(&f.a, normals[0], &f.b, normals[1]);
-                let v = estimate::point_point(&g, normals[0], normals[1], &mut evaluations);
-                (v * scale, evaluations, Method::PointPoint)
-            }
-            Estimator::Auto { tolerance } => {
-                let g = PairGeometry::new(&f.a, normals[0], &f.b, normals[1]);
-                match estimate::choose(&g, [&f.a, &f.b], tolerance) {
-                    Choice::PointPoint => {
-                        let v = estimate::point_point(&g, normals[0], normals[1], &mut evaluations);
-                        (v * scale, evaluations, Method::PointPoint)
-                    }
-                    Choice::PointPolygon(rule) => {
-                        let v = estimate::point_polygon(
-                            &g,
-                            [&f.a, &f.b],
-                            normals,
-                            rule,
-                            &mut evaluations,
-                        );
-                        (v * scale, evaluations, Method::PointPolygon)
-                    }
-                    choice @ (Choice::Gauss(_) | Choice::Near) => {
-                        let options = estimate::contour_options(choice).unwrap_or(self.options);
-                        let (v, e) = self.contour_with(f, &options);
-                        (v, e, Method::Contour)
-                    }
-                    Choice::Exact => {
-                        let (v, e) = self.contour(f);
-                        (v, e, Method::Contour)
-                    }
-                }
-            }
+        if self.estimator == Estimator::Contour {
+            let (v, e) = self.contour(f);
+            return (v, e, Method::Contour);
         }
+        let normals = [self.mesh.elements[i].normal, self.mesh.elements[j].normal];
+        let g = PairGeometry::new(&f.a, normals[0], &f.b, normals[1]);
+        let choice = match self.estimator {
+            Estimator::PointPolygon(rule) => Choice::PointPolygon(rule),
+            Estimator::PointPoint => Choice::PointPoint,
+            Estimator::Auto { tolerance } => estimate::choose(&g, [&f.a, &f.b], tolerance),
+            Estimator::Contour => Choice::Exact,
+        };
+        if let Some(options) = choice.contour_options(self.options) {
+            let (v, e) = self.contour_with(f, &options);
+            return (v, e, Method::Contour);
+        }
+        let mut evaluations = 0;
+        let (v, method) = match choice {
+            Choice::PointPolygon(rule) => (
+                estimate::point_polygon(&g, [&f.a, &f.b], normals, rule, &mut evaluations),
+                Method::PointPolygon,
+            ),
+            // Choice::PointPoint: every contour choice returned above.
+            _ => (
+                estimate::point_point(&g, normals[0], normals[1], &mut evaluations),
+                Method::PointPoint,
+            ),
+        };
+        (v * f.unit * f.unit, evaluations, method)
     }
 
     /// The pair in its own frame, each element clipped to the part in front of the other's

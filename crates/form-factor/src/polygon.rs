@@ -33,6 +33,10 @@ impl Poly {
         self.v[k]
     }
 
+    pub fn vertices(&self) -> &[DVec3] {
+        &self.v[..self.n]
+    }
+
     /// Largest distance from the first vertex (a size scale for tolerances).
     pub fn extent(&self) -> f64 {
         self.v[..self.n]
