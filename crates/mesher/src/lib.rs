@@ -78,8 +78,13 @@ pub const DEFAULT_ELEMENTS_PER_DIAGONAL: f64 = 16.0;
 
 /// The default `--max-element-size`: the scene's bounding-box diagonal / 16.
 pub fn default_max_element_size(polygons: &[Polygon]) -> f64 {
+    max_element_size(polygons, DEFAULT_ELEMENTS_PER_DIAGONAL)
+}
+
+/// An element size relative to the scene: its bounding-box diagonal / `per_diagonal`.
+pub fn max_element_size(polygons: &[Polygon], per_diagonal: f64) -> f64 {
     let (lo, hi) = importer::bounds(polygons);
-    (hi - lo).length() / DEFAULT_ELEMENTS_PER_DIAGONAL
+    (hi - lo).length() / per_diagonal
 }
 
 /// Subdivides every polygon into elements.

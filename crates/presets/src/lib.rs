@@ -62,8 +62,7 @@ pub struct Preset {
 impl Preset {
     /// The largest element edge for `polygons` (world units).
     pub fn max_element_size(&self, polygons: &[Polygon]) -> f64 {
-        let (lo, hi) = importer::bounds(polygons);
-        (hi - lo).length() / self.elements_per_diagonal
+        mesher::max_element_size(polygons, self.elements_per_diagonal)
     }
 }
 
