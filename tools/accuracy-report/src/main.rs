@@ -412,14 +412,20 @@ fn cube_sweep(cube: &Scene, options: &Options, rows: &mut Vec<Row>) -> Result<Cu
     }
     curves.bounces.extend(bounce_curves);
 
-    // The reference's own convergence: exact solutions at n/4 and n/2 against it.
-    let mut reference_convergence = Vec::new();
-    for n in [reference_n / 4, reference_n / 2] {
-        let mesh = mesher::mesh(&cube.polygons, Subdivision::Count(n))?;
-        let b = measure::closed_form_solution(cube, &mesh)?;
-        let e = measure::element_errors(&Field::new(&mesh, &b), &reference, cube);
-        reference_convergence.push((n, e));
-    }
+    // The reference's own convergence: exact solutions at n/4 and n/2 (solved above for the
+    // extrapolation) against it.
+    let quarter_mesh = mesher::mesh(&cube.polygons, Subdivision::Count(reference_n / 4))?;
+    let quarter_b = measure::closed_form_solution(cube, &quarter_mesh)?;
+    let reference_convergence = vec![
+        (
+            reference_n / 4,
+            measure::element_errors(&Field::new(&quarter_mesh, &quarter_b), &reference, cube),
+        ),
+        (
+            reference_n / 2,
+            measure::element_errors(&Field::new(&half_mesh, &half_b), &reference, cube),
+        ),
+    ];
     Ok(CubeSummary {
         reference_n,
         reference_elements: ref_mesh.elements.len(),
@@ -458,9 +464,8 @@ fn row(
 }
 
 fn cornell_sweep(cornell: &Scene, rows: &mut Vec<Row>) -> Result<CornellSummary> {
-    let size = |per_diagonal: f64| {
-        let (lo, hi) = importer::bounds(&cornell.polygons);
-        Subdivision::MaxSize((hi - lo).length() / per_diagonal)
+    let size = |per_diagonal| {
+        Subdivision::MaxSize(mesher::max_element_size(&cornell.polygons, per_diagonal))
     };
     let reference_setting = |per_diagonal: f64| {
         let mut s = setting(

@@ -183,17 +183,14 @@ impl<'a> Field<'a> {
         for k in patch.elements.clone() {
             let k = k as usize;
             let e = &self.mesh.elements[k];
-            let c: Vec<DVec3> = e
-                .corner_indices()
-                .iter()
-                .map(|&i| self.mesh.vertices[i as usize])
-                .collect();
+            let corners = corners(self.mesh, k);
+            let c = &corners[..e.sides as usize];
             // Cheap rejection before the inverse map: farther than every corner.
             let reach = c.iter().map(|x| x.distance(e.centroid)).fold(0.0, f64::max);
             if p.distance(e.centroid) > reach * (1.0 + 1e-6) {
                 continue;
             }
-            let (weights, outside) = weights(&c, e.normal, p);
+            let (weights, outside) = weights(c, e.normal, p);
             if outside <= 1e-9 {
                 return Some((k, weights));
             }
@@ -219,6 +216,13 @@ impl<'a> Field<'a> {
         }
         Some(v)
     }
+}
+
+/// An element's corner positions (a triangle repeats its third corner), without allocating.
+fn corners(mesh: &ElementMesh, element: usize) -> [DVec3; 4] {
+    mesh.elements[element]
+        .corners
+        .map(|i| mesh.vertices[i as usize])
 }
 
 /// Interpolation weights of `p` at the corners `c` (bilinear for a quad by Newton's method on
@@ -306,6 +310,33 @@ pub struct Errors {
     pub rms: f64,
 }
 
+/// Running max and weighted sum of squares of relative errors.
+#[derive(Default)]
+struct Accumulator {
+    max: f64,
+    squares: f64,
+    weight: f64,
+}
+
+impl Accumulator {
+    fn add(&mut self, error: f64, weight: f64) {
+        self.max = self.max.max(error);
+        self.squares += weight * error * error;
+        self.weight += weight;
+    }
+
+    fn finish(self) -> Errors {
+        Errors {
+            max: self.max,
+            rms: if self.weight > 0.0 {
+                (self.squares / self.weight).sqrt()
+            } else {
+                0.0
+            },
+        }
+    }
+}
+
 /// Sub-samples per reference element side on triangles for [`element_errors`].
 const SUBSAMPLES: usize = 4;
 
@@ -352,11 +383,7 @@ pub fn element_errors(coarse: &Field, reference: &Field, scene: &Scene) -> Error
         for k in rp.elements.clone() {
             let k = k as usize;
             let e = &reference.mesh.elements[k];
-            let c: Vec<DVec3> = e
-                .corner_indices()
-                .iter()
-                .map(|&i| reference.mesh.vertices[i as usize])
-                .collect();
+            let c = corners(reference.mesh, k);
             let m = SUBSAMPLES;
             let w = e.area / (m * m) as f64;
             // The m² sub-triangles' centroids of the regular split (upright and inverted).
@@ -381,7 +408,7 @@ pub fn element_errors(coarse: &Field, reference: &Field, scene: &Scene) -> Error
         }
     }
     let floor = dark_floor(reference, scene);
-    let (mut max, mut sq, mut weight) = (0.0f64, 0.0, 0.0);
+    let mut errors = Accumulator::default();
     for (c, e) in coarse.mesh.elements.iter().enumerate() {
         if area[c] == 0.0 {
             continue;
@@ -390,20 +417,11 @@ pub fn element_errors(coarse: &Field, reference: &Field, scene: &Scene) -> Error
             let r = sum[c][band] / area[c];
             let err = (coarse.b[c][band] - r).abs() / r.max(floor[band]);
             if err.is_finite() {
-                max = max.max(err);
-                sq += e.area * err * err;
-                weight += e.area;
+                errors.add(err, e.area);
             }
         }
     }
-    Errors {
-        max,
-        rms: if weight > 0.0 {
-            (sq / weight).sqrt()
-        } else {
-            0.0
-        },
-    }
+    errors.finish()
 }
 
 /// Per band, 5% of the area-weighted mean radiosity of the reference's non-emitting elements:
@@ -456,25 +474,15 @@ pub fn max_relative(values: &[[f64; 3]], reference: &[[f64; 3]]) -> f64 {
 
 /// Relative error of same-mesh solutions, element by element.
 pub fn same_mesh_errors(mesh: &ElementMesh, b: &[[f64; 3]], exact: &[[f64; 3]]) -> Errors {
-    let (mut max, mut sq, mut weight) = (0.0f64, 0.0, 0.0);
+    let mut errors = Accumulator::default();
     for ((e, x), r) in mesh.elements.iter().zip(b).zip(exact) {
         for band in 0..3 {
             if r[band] > 0.0 {
-                let err = (x[band] - r[band]).abs() / r[band];
-                max = max.max(err);
-                sq += e.area * err * err;
-                weight += e.area;
+                errors.add((x[band] - r[band]).abs() / r[band], e.area);
             }
         }
     }
-    Errors {
-        max,
-        rms: if weight > 0.0 {
-            (sq / weight).sqrt()
-        } else {
-            0.0
-        },
-    }
+    errors.finish()
 }
 
 /// A scanline across the scene: points on polygons, at positions along the line.
@@ -539,25 +547,15 @@ impl Scanline {
 
 /// Max and RMS relative error of `values` against `reference` along a scanline.
 pub fn scanline_errors(values: &[[f64; 3]], reference: &[[f64; 3]]) -> Errors {
-    let (mut max, mut sq, mut count) = (0.0f64, 0.0, 0usize);
+    let mut errors = Accumulator::default();
     for (v, r) in values.iter().zip(reference) {
         for band in 0..3 {
             if r[band] > 0.0 && v[band].is_finite() {
-                let err = (v[band] - r[band]).abs() / r[band];
-                max = max.max(err);
-                sq += err * err;
-                count += 1;
+                errors.add((v[band] - r[band]).abs() / r[band], 1.0);
             }
         }
     }
-    Errors {
-        max,
-        rms: if count > 0 {
-            (sq / count as f64).sqrt()
-        } else {
-            0.0
-        },
-    }
+    errors.finish()
 }
 
 #[cfg(test)]
