@@ -446,3 +446,32 @@ pub(crate) fn point_polygon(
     }
     total / (2.0 * PI)
 }
+
+/// `(max − min) / mean` of the point-to-polygon kernel over both sides of a facing pair (see
+/// [`crate::SurfacePair::variation`]): `F_{dx→b}` at five points of `a` (the centroid of its
+/// vertices and the midpoints from there towards each vertex, never on an edge, where the
+/// kernel of a touching pair is singular) and `F_{dy→a}` at five points of `b`; the larger.
+pub(crate) fn variation(a: &Poly, na: DVec3, b: &Poly, nb: DVec3) -> f64 {
+    side_variation(a, na, b).max(side_variation(b, nb, a))
+}
+
+fn side_variation(from: &Poly, n: DVec3, to: &Poly) -> f64 {
+    let v = from.vertices();
+    let centre = v.iter().copied().sum::<DVec3>() / v.len() as f64;
+    let (mut lo, mut hi, mut sum) = (f64::INFINITY, 0.0f64, 0.0);
+    let points = std::iter::once(centre).chain(v.iter().map(|&c| (c + centre) * 0.5));
+    let mut count = 0.0;
+    for x in points {
+        let f = point_to_polygon(x, n, to.vertices());
+        lo = lo.min(f);
+        hi = hi.max(f);
+        sum += f;
+        count += 1.0;
+    }
+    let mean = sum / count;
+    if mean > 0.0 {
+        (hi - lo) / mean
+    } else {
+        0.0
+    }
+}

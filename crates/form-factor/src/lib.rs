@@ -127,7 +127,11 @@ impl<'a> FormFactors<'a> {
     /// `A_i F_ij` (= `A_j F_ji`): the symmetric double contour integral over 2π, times the
     /// pair's visible fraction when occlusion is on ([`FormFactors::with_occlusion`]).
     pub fn area_weighted(&self, i: usize, j: usize) -> PairResult {
-        let Some(facing) = self.facing(i, j) else {
+        if i == j {
+            return PairResult::CULLED;
+        }
+        let (a, b) = (self.surface(i), self.surface(j));
+        let Some(facing) = facing(&a, &b) else {
             return PairResult::CULLED;
         };
         let visibility = match &self.occlusion {
@@ -140,7 +144,8 @@ impl<'a> FormFactors<'a> {
         let (value, evaluations, method) = if visibility.fraction == 0.0 {
             (0.0, 0, None)
         } else {
-            let (g, evaluations, method) = self.estimate(i, j, &facing);
+            let (g, evaluations, method) =
+                estimate_pair(&facing, [a.normal, b.normal], &self.options, self.estimator);
             (g * visibility.fraction, evaluations, Some(method))
         };
         PairResult {
@@ -152,96 +157,9 @@ impl<'a> FormFactors<'a> {
         }
     }
 
-    /// `A_i F_ij` of a facing pair by the configured estimator.
-    fn estimate(&self, i: usize, j: usize, f: &Facing) -> (f64, u64, Method) {
-        if self.estimator == Estimator::Contour {
-            let (v, e) = self.contour(f);
-            return (v, e, Method::Contour);
-        }
-        let normals = [self.mesh.elements[i].normal, self.mesh.elements[j].normal];
-        let g = PairGeometry::new(&f.a, normals[0], &f.b, normals[1]);
-        let choice = match self.estimator {
-            Estimator::PointPolygon(rule) => Choice::PointPolygon(rule),
-            Estimator::PointPoint => Choice::PointPoint,
-            Estimator::Auto { tolerance } => estimate::choose(&g, [&f.a, &f.b], tolerance),
-            Estimator::Contour => Choice::Exact,
-        };
-        if let Some(options) = choice.contour_options(self.options) {
-            let (v, e) = self.contour_with(f, &options);
-            return (v, e, Method::Contour);
-        }
-        let mut evaluations = 0;
-        let (v, method) = match choice {
-            Choice::PointPolygon(rule) => (
-                estimate::point_polygon(&g, [&f.a, &f.b], normals, rule, &mut evaluations),
-                Method::PointPolygon,
-            ),
-            // Choice::PointPoint: every contour choice returned above.
-            _ => (
-                estimate::point_point(&g, normals[0], normals[1], &mut evaluations),
-                Method::PointPoint,
-            ),
-        };
-        (v * f.unit * f.unit, evaluations, method)
-    }
-
-    /// The pair in its own frame, each element clipped to the part in front of the other's
-    /// plane; `None` when they cannot exchange light (same element, back-facing, coplanar).
-    fn facing(&self, i: usize, j: usize) -> Option<Facing> {
-        if i == j {
-            return None;
-        }
-        let (ni, nj) = (self.mesh.elements[i].normal, self.mesh.elements[j].normal);
-        // Parallel planes facing the same way never see each other: each lies behind or in the
-        // other's plane. Deciding it from the normals makes coplanar neighbours exactly 0 even
-        // where their vertices are only known to the rounding of large world coordinates
-        // (a scene far from the origin), which the clip tolerance below cannot resolve.
-        if ni.dot(nj) >= 1.0 - PARALLEL {
-            return None;
-        }
-        let (pi, pj) = (self.poly(i), self.poly(j));
-        // Work relative to the pair's own frame: origin between the centroids, unit = their
-        // distance. ln r then stays near 0 and the result is independent of where the scene
-        // sits and of its scale (the contour integral of a constant vanishes on closed loops).
-        let (ci, cj) = (
-            self.mesh.elements[i].centroid,
-            self.mesh.elements[j].centroid,
-        );
-        let origin = (ci + cj) * 0.5;
-        let unit = ci.distance(cj).max(pi.extent().max(pj.extent()) * 1e-3);
-        let (pi, pj) = (pi.in_frame(origin, unit), pj.in_frame(origin, unit));
-        // Clip each element to the half-space in front of the other (eq. 13 assumes both
-        // surfaces see each other wholly). Tolerance relative to the pair's size.
-        let tol = 1e-11 * (pi.extent().max(pj.extent())).max(1.0);
-        let (a, clipped_i) = pi.clip_front(pj.vertex(0), nj, tol)?;
-        let (b, clipped_j) = pj.clip_front(pi.vertex(0), ni, tol)?;
-        let kind = if clipped_i || clipped_j {
-            PairKind::Clipped
-        } else {
-            PairKind::Facing
-        };
-        Some(Facing { a, b, unit, kind })
-    }
-
-    /// Eq. 13 over the (clipped) contours: `A_i F_ij` in world units, and kernel evaluations.
-    fn contour(&self, f: &Facing) -> (f64, u64) {
-        self.contour_with(f, &self.options)
-    }
-
-    fn contour_with(&self, f: &Facing, options: &ContourOptions) -> (f64, u64) {
-        let mut evaluations = 0;
-        let mut sum = 0.0;
-        for a in 0..f.a.len() {
-            let (p0, p1) = (f.a.vertex(a), f.a.vertex((a + 1) % f.a.len()));
-            for b in 0..f.b.len() {
-                let (q0, q1) = (f.b.vertex(b), f.b.vertex((b + 1) % f.b.len()));
-                sum += contour::edge_pair(p0, p1, q0, q1, options, &mut evaluations);
-            }
-        }
-        // Eq. 13 with both contours counter-clockwise about their own normals. Quadrature
-        // noise can leave a tiny negative value for a pair that barely sees itself: F ≥ 0.
-        let g = (sum / (2.0 * std::f64::consts::PI)).max(0.0) * f.unit * f.unit;
-        (g, evaluations)
+    /// Element `i` as a [`Surface`].
+    pub fn surface(&self, i: usize) -> Surface {
+        Surface::element(self.mesh, i)
     }
 
     /// `F_ij`: the fraction of the light leaving element i that reaches element j.
@@ -300,15 +218,6 @@ impl<'a> FormFactors<'a> {
         }
         let stats = stats.into_inner().unwrap_or_default();
         DenseFormFactors { n, data, stats }
-    }
-
-    fn poly(&self, i: usize) -> Poly {
-        let e = &self.mesh.elements[i];
-        Poly::from_points(
-            e.corner_indices()
-                .iter()
-                .map(|&c| self.mesh.vertices[c as usize]),
-        )
     }
 }
 
@@ -369,6 +278,199 @@ impl PairResult {
         method: None,
         visibility: Visibility::UNOCCLUDED,
     };
+}
+
+/// A planar convex polygon of 3 or 4 corners, counter-clockwise about its unit normal, with
+/// its area and area centroid: an element, or a node of a hierarchy over elements. The unit of
+/// every pair function of this crate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surface {
+    pub corners: [DVec3; 4],
+    /// 3 or 4 (a triangle repeats its third corner).
+    pub sides: u8,
+    pub normal: DVec3,
+    pub centroid: DVec3,
+    pub area: f64,
+}
+
+impl Surface {
+    /// A surface from 3 or 4 corners (counter-clockwise about the unit `normal`): area and area
+    /// centroid by a fan of triangles. `None` for another corner count or no area.
+    pub fn new(corners: &[DVec3], normal: DVec3) -> Option<Surface> {
+        let sides = corners.len();
+        if !(3..=4).contains(&sides) {
+            return None;
+        }
+        let mut c = [corners[0]; 4];
+        c[..sides].copy_from_slice(corners);
+        if sides == 3 {
+            c[3] = c[2];
+        }
+        let mut area = 0.0;
+        let mut moment = DVec3::ZERO;
+        for k in 1..sides - 1 {
+            let t = (c[k] - c[0]).cross(c[k + 1] - c[0]).dot(normal) * 0.5;
+            area += t;
+            moment += (c[0] + c[k] + c[k + 1]) * (t / 3.0);
+        }
+        (area > 0.0 && area.is_finite()).then(|| Surface {
+            corners: c,
+            sides: sides as u8,
+            normal,
+            centroid: moment / area,
+            area,
+        })
+    }
+
+    /// Element `i` of `mesh` (its corners, normal, area and centroid as the mesher computed
+    /// them).
+    pub fn element(mesh: &ElementMesh, i: usize) -> Surface {
+        let e = &mesh.elements[i];
+        let mut corners = [DVec3::ZERO; 4];
+        for (c, &k) in corners.iter_mut().zip(&e.corners) {
+            *c = mesh.vertices[k as usize];
+        }
+        Surface {
+            corners,
+            sides: e.sides,
+            normal: e.normal,
+            centroid: e.centroid,
+            area: e.area,
+        }
+    }
+
+    /// The corners actually used.
+    pub fn corner_points(&self) -> &[DVec3] {
+        &self.corners[..self.sides as usize]
+    }
+
+    fn poly(&self) -> Poly {
+        Poly::from_points(self.corner_points().iter().copied())
+    }
+}
+
+/// One unoccluded surface pair, as [`surface_pair`] computes it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfacePair {
+    /// `A_a F_ab` (= `A_b F_ba`) without occlusion.
+    pub value: f64,
+    pub kind: PairKind,
+    pub evaluations: u64,
+    pub method: Method,
+    /// How much the point-to-surface kernel varies over the pair, relative to its mean: the
+    /// larger over the two sides of `(max − min) / mean` of `F_{dx→b}` at five points of `a`
+    /// (its centroid and the midpoints towards its corners) and of `F_{dy→a}` at five points of
+    /// `b`. 0 when the kernel is constant over both (a distant pair), about 1 or more when one
+    /// side sees the other very differently from place to place (a corner).
+    pub variation: f64,
+}
+
+/// `A_a F_ab` of two surfaces by `estimator` (no occlusion), with the kernel's variation over
+/// the pair; `None` when they cannot exchange light (parallel and facing the same way, or one
+/// wholly behind or in the other's plane). Straddling surfaces are clipped to their front
+/// parts, as for elements. Symmetric up to rounding: `surface_pair(b, a)` gives the same value.
+pub fn surface_pair(
+    a: &Surface,
+    b: &Surface,
+    options: &ContourOptions,
+    estimator: Estimator,
+) -> Option<SurfacePair> {
+    let f = facing(a, b)?;
+    let (value, evaluations, method) = estimate_pair(&f, [a.normal, b.normal], options, estimator);
+    let variation = estimate::variation(&f.a, a.normal, &f.b, b.normal);
+    Some(SurfacePair {
+        value,
+        kind: f.kind,
+        evaluations,
+        method,
+        variation,
+    })
+}
+
+/// The pair in its own frame, each surface clipped to the part in front of the other's
+/// plane; `None` when they cannot exchange light (back-facing, coplanar, parallel same-facing).
+fn facing(sa: &Surface, sb: &Surface) -> Option<Facing> {
+    let (ni, nj) = (sa.normal, sb.normal);
+    // Parallel planes facing the same way never see each other: each lies behind or in the
+    // other's plane. Deciding it from the normals makes coplanar neighbours exactly 0 even
+    // where their vertices are only known to the rounding of large world coordinates
+    // (a scene far from the origin), which the clip tolerance below cannot resolve.
+    if ni.dot(nj) >= 1.0 - PARALLEL {
+        return None;
+    }
+    let (pi, pj) = (sa.poly(), sb.poly());
+    // Work relative to the pair's own frame: origin between the centroids, unit = their
+    // distance. ln r then stays near 0 and the result is independent of where the scene
+    // sits and of its scale (the contour integral of a constant vanishes on closed loops).
+    let (ci, cj) = (sa.centroid, sb.centroid);
+    let origin = (ci + cj) * 0.5;
+    let unit = ci.distance(cj).max(pi.extent().max(pj.extent()) * 1e-3);
+    let (pi, pj) = (pi.in_frame(origin, unit), pj.in_frame(origin, unit));
+    // Clip each surface to the half-space in front of the other (eq. 13 assumes both
+    // surfaces see each other wholly). Tolerance relative to the pair's size.
+    let tol = 1e-11 * (pi.extent().max(pj.extent())).max(1.0);
+    let (a, clipped_i) = pi.clip_front(pj.vertex(0), nj, tol)?;
+    let (b, clipped_j) = pj.clip_front(pi.vertex(0), ni, tol)?;
+    let kind = if clipped_i || clipped_j {
+        PairKind::Clipped
+    } else {
+        PairKind::Facing
+    };
+    Some(Facing { a, b, unit, kind })
+}
+
+/// `A_i F_ij` of a facing pair by `estimator`, and its kernel evaluations.
+fn estimate_pair(
+    f: &Facing,
+    normals: [DVec3; 2],
+    options: &ContourOptions,
+    estimator: Estimator,
+) -> (f64, u64, Method) {
+    if estimator == Estimator::Contour {
+        let (v, e) = contour_with(f, options);
+        return (v, e, Method::Contour);
+    }
+    let g = PairGeometry::new(&f.a, normals[0], &f.b, normals[1]);
+    let choice = match estimator {
+        Estimator::PointPolygon(rule) => Choice::PointPolygon(rule),
+        Estimator::PointPoint => Choice::PointPoint,
+        Estimator::Auto { tolerance } => estimate::choose(&g, [&f.a, &f.b], tolerance),
+        Estimator::Contour => Choice::Exact,
+    };
+    if let Some(options) = choice.contour_options(*options) {
+        let (v, e) = contour_with(f, &options);
+        return (v, e, Method::Contour);
+    }
+    let mut evaluations = 0;
+    let (v, method) = match choice {
+        Choice::PointPolygon(rule) => (
+            estimate::point_polygon(&g, [&f.a, &f.b], normals, rule, &mut evaluations),
+            Method::PointPolygon,
+        ),
+        // Choice::PointPoint: every contour choice returned above.
+        _ => (
+            estimate::point_point(&g, normals[0], normals[1], &mut evaluations),
+            Method::PointPoint,
+        ),
+    };
+    (v * f.unit * f.unit, evaluations, method)
+}
+
+/// Eq. 13 over the (clipped) contours: `A_i F_ij` in world units, and kernel evaluations.
+fn contour_with(f: &Facing, options: &ContourOptions) -> (f64, u64) {
+    let mut evaluations = 0;
+    let mut sum = 0.0;
+    for a in 0..f.a.len() {
+        let (p0, p1) = (f.a.vertex(a), f.a.vertex((a + 1) % f.a.len()));
+        for b in 0..f.b.len() {
+            let (q0, q1) = (f.b.vertex(b), f.b.vertex((b + 1) % f.b.len()));
+            sum += contour::edge_pair(p0, p1, q0, q1, options, &mut evaluations);
+        }
+    }
+    // Eq. 13 with both contours counter-clockwise about their own normals. Quadrature
+    // noise can leave a tiny negative value for a pair that barely sees itself: F ≥ 0.
+    let g = (sum / (2.0 * std::f64::consts::PI)).max(0.0) * f.unit * f.unit;
+    (g, evaluations)
 }
 
 /// A facing pair in its own frame, clipped.

@@ -86,6 +86,37 @@ impl Tree {
         })
     }
 
+    /// Whether `pred(piece)` holds for some piece whose padded box overlaps the box lo–hi (world
+    /// units). Stops at the first (the answer does not depend on the traversal order).
+    pub fn any_in_box(&self, lo: DVec3, hi: DVec3, mut pred: impl FnMut(usize) -> bool) -> bool {
+        let query = Aabb::new(
+            ((lo - self.centre) / self.scale).as_vec3a() - PAD,
+            ((hi - self.centre) / self.scale).as_vec3a() + PAD,
+        );
+        let bvh = &self.bvh;
+        let mut state = bvh.new_traversal(Vec3A::ONE);
+        let mut node;
+        let mut found = false;
+        obvhs::traverse!(
+            bvh,
+            node,
+            state,
+            // Once found, no node is entered again: the traversal only drains its stack.
+            if found {
+                0
+            } else {
+                node.intersect_aabb(&query, state.oct_inv4)
+            },
+            {
+                if !found && pred(bvh.primitive_indices[state.primitive_id as usize] as usize) {
+                    found = true;
+                    state.primitive_group.y = 0;
+                }
+            }
+        );
+        found
+    }
+
     /// Calls `f(piece)` for every piece whose padded box overlaps the box lo–hi (world units).
     pub fn for_each_in_box(&self, lo: DVec3, hi: DVec3, mut f: impl FnMut(usize)) {
         let query = Aabb::new(

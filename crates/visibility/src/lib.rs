@@ -227,15 +227,13 @@ impl Occluders {
             .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
                 (lo.min(p), hi.max(p))
             });
-        let mut found = false;
-        tree.for_each_in_box(alo, ahi, |k| {
-            if found || k == a.polygon() || k == b.polygon() {
-                return;
+        tree.any_in_box(alo, ahi, |k| {
+            if k == a.polygon() || k == b.polygon() {
+                return false;
             }
             let piece = &self.pieces[k];
-            found = may_block(piece, a, b, tol) && may_block(piece, &pa, &pb, tol);
-        });
-        found
+            may_block(piece, a, b, tol) && may_block(piece, &pa, &pb, tol)
+        })
     }
 
     /// Which polygon pairs some third polygon can come between, with those candidate
