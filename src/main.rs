@@ -1,5 +1,6 @@
 //! `bake`: the command line. It parses options and wires the pipeline stages together
-//! (importer → mesher → form-factor → solver → exporter); all the work is in the crates.
+//! (importer → the `bake` library's one bake → lightmap → exporter); all the work is in the
+//! crates.
 
 mod pipeline;
 mod preview_cli;
@@ -62,15 +63,18 @@ pub struct Cli {
     /// --max-iterations runs out. Both refuse systems without a meaningful finite solution
     /// (e.g. a closed scene with ρ = 1 and an emitter) and report the condition number
     /// cond∞(I − ρF) per band, about (1 + ρ)/(1 − ρ) in a closed grey scene.
-    #[arg(long, value_enum, default_value_t = SolverKind::Direct)]
-    pub solver: SolverKind,
-    /// Iterative solver: the relative residual to reach, in (0, 1) [default: 1e-12]. The error
+    /// [default: direct for the dense transport; the hierarchical transport is always solved
+    /// by GMRES]
+    #[arg(long, value_enum)]
+    pub solver: Option<SolverKind>,
+    /// Iterative solver: the relative residual to reach, in (0, 1) [default: 1e-12 dense, 1e-6
+    /// hierarchical]; implies --solver iterative. The error
     /// of b is at most about cond∞ × T. Rounding alone leaves a residual of about
     /// 1e-16 × cond∞ × √n, so very bright closed scenes (ρ ≥ 0.9999) may need T ≥ 1e-11.
     #[arg(long, value_name = "T", value_parser = parse_tolerance)]
     pub tolerance: Option<f64>,
     /// Iterative solver: GMRES iterations allowed per band (each one multiplies by the
-    /// form-factor matrix once) [default: 1000].
+    /// form-factor matrix once) [default: 1000]; implies --solver iterative.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub max_iterations: Option<u32>,
 
@@ -139,6 +143,20 @@ pub struct Cli {
     #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub visibility_samples: Option<u32>,
 
+    /// How light moves between elements. `dense`: every element pair's form factor in an
+    /// n × n matrix (exact; time and memory grow with n²). `hierarchical`: hierarchical
+    /// radiosity (Hanrahan, Salzman & Aupperle 1991): each polygon is a tree over its elements
+    /// and light moves along links between the coarsest node pairs whose estimated error is
+    /// below --link-tolerance (links grow about linearly with n). `auto`: dense up to the
+    /// measured crossover, hierarchical above it; the report says which and why.
+    #[arg(long, value_enum, default_value_t = TransportArg::Auto)]
+    pub transport: TransportArg,
+    /// Hierarchical transport: the largest estimated error of one link's contribution to the
+    /// radiosity of its receiver, relative to the scene's mean radiosity [default: from
+    /// --quality: 0.05 draft, 0.01 normal, 0.002 high].
+    #[arg(long, value_name = "T", value_parser = parse_positive)]
+    pub link_tolerance: Option<f64>,
+
     /// What to write. `vertex`: OUT holds the element mesh with the radiosity in COLOR_0
     /// (unlit). `lightmap`: OUT holds the input's polygons (not subdivided) with lit materials,
     /// TEXCOORD_1 and a MOZ_lightmap PNG (OUT's stem + .lightmap.png), plus OUT's stem +
@@ -168,6 +186,60 @@ pub struct Cli {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum TransportArg {
+    Auto,
+    Dense,
+    Hierarchical,
+}
+
+impl Cli {
+    /// The bake's options as the library takes them (`None`: from the preset or default).
+    pub fn request(&self) -> bake_core::Request {
+        use bake_core::{EstimatorKind, SolverKind as Kind, TransportKind};
+        let subdivision = match (self.subdiv, self.max_element_size) {
+            (Some(n), _) => Some(mesher::Subdivision::Count(n)),
+            (None, Some(l)) => Some(mesher::Subdivision::MaxSize(l)),
+            (None, None) => None,
+        };
+        let iterative_given = self.tolerance.is_some() || self.max_iterations.is_some();
+        bake_core::Request {
+            quality: self.quality.quality(),
+            subdivision,
+            contour: form_factor::ContourOptions {
+                segments: self.ff_segments,
+                order: self.ff_order,
+                auto_order: !self.ff_fixed_order,
+                near_ratio: self.ff_near_ratio,
+            },
+            ff_estimator: self.ff_estimator.map(|e| match e {
+                EstimatorArg::Contour => EstimatorKind::Contour,
+                EstimatorArg::PointPolygon => EstimatorKind::PointPolygon,
+                EstimatorArg::PointPoint => EstimatorKind::PointPoint,
+                EstimatorArg::Auto => EstimatorKind::Auto,
+            }),
+            ff_tolerance: self.ff_tolerance,
+            ff_points: self.ff_points,
+            visibility_samples: self.visibility_samples,
+            solver: match (self.solver, iterative_given) {
+                (Some(SolverKind::Direct), _) => Some(Kind::Direct),
+                (Some(SolverKind::Iterative), _) | (None, true) => Some(Kind::Iterative),
+                (None, false) => None,
+            },
+            bounces: self.bounces,
+            tolerance: self.tolerance,
+            max_iterations: self.max_iterations,
+            transport: match self.transport {
+                TransportArg::Auto => TransportKind::Auto,
+                TransportArg::Dense => TransportKind::Dense,
+                TransportArg::Hierarchical => TransportKind::Hierarchical,
+            },
+            link_tolerance: self.link_tolerance,
+            irradiance: self.target != Target::Vertex,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum QualityArg {
     Draft,
     Normal,
@@ -175,11 +247,12 @@ pub enum QualityArg {
 }
 
 impl QualityArg {
-    pub fn quality(self) -> presets::Quality {
+    pub fn quality(self) -> bake_core::presets::Quality {
+        use bake_core::presets::Quality;
         match self {
-            QualityArg::Draft => presets::Quality::Draft,
-            QualityArg::Normal => presets::Quality::Normal,
-            QualityArg::High => presets::Quality::High,
+            QualityArg::Draft => Quality::Draft,
+            QualityArg::Normal => Quality::Normal,
+            QualityArg::High => Quality::High,
         }
     }
 }
@@ -203,6 +276,15 @@ fn parse_tolerance(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(t) if t > 0.0 && t < 1.0 => Ok(t),
         Ok(t) => Err(format!("must be a number in (0, 1), got {t}")),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// `--link-tolerance`: a finite number > 0.
+fn parse_positive(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(t) if t.is_finite() && t > 0.0 => Ok(t),
+        Ok(t) => Err(format!("must be a finite number > 0, got {t}")),
         Err(e) => Err(e.to_string()),
     }
 }
@@ -259,7 +341,7 @@ fn check_solver_options(cli: Cli) -> Result<Cli, clap::Error> {
             "--ff-tolerance applies only to --ff-estimator auto",
         ));
     }
-    if cli.solver != SolverKind::Iterative {
+    if cli.solver == Some(SolverKind::Direct) || cli.bounces.is_some() {
         for (given, flag) in [
             (cli.tolerance.is_some(), "--tolerance"),
             (cli.max_iterations.is_some(), "--max-iterations"),
@@ -267,7 +349,10 @@ fn check_solver_options(cli: Cli) -> Result<Cli, clap::Error> {
             if given {
                 return Err(Cli::command().error(
                     clap::error::ErrorKind::ArgumentConflict,
-                    format!("{flag} applies only to --solver iterative"),
+                    format!(
+                        "{flag} applies only to the iterative solver (--solver iterative, or the \
+                         hierarchical transport)"
+                    ),
                 ));
             }
         }

@@ -169,48 +169,20 @@ struct Solved {
     h: Vec<[f64; 3]>,
 }
 
-/// The CLI's default bake of `path`, with H = F b.
+/// The CLI's default bake of `path`, with H = F b: the library's one bake, as `bake` runs it.
 fn solve(path: &Path) -> Solved {
-    use solver::Operator;
     let scene = importer::load(path).expect("load the scene");
-    let preset = presets::Quality::Normal.preset();
-    let size = preset.max_element_size(&scene.polygons);
-    let mesh = mesher::mesh(&scene.polygons, mesher::Subdivision::MaxSize(size)).expect("mesh");
-    let contour = form_factor::ContourOptions {
-        segments: 1,
-        order: 3,
-        ..form_factor::ContourOptions::default()
+    let request = bake_core::Request {
+        irradiance: true,
+        ..bake_core::Request::default()
     };
-    // With hidden surfaces, as the CLI does: without them the blocks and the walls behind
-    // them are both seen, rows sum past 1, and the solver rightly refuses the system.
-    let occluders = form_factor::Occluders::new(&scene.polygons).expect("occluders");
-    let pairs = occluders.occludable_pairs();
-    let occlusion = form_factor::Occlusion {
-        occluders: &occluders,
-        pairs: &pairs,
-        samples: preset.visibility_samples,
-    };
-    let matrix = form_factor::FormFactors::new(&mesh, contour)
-        .with_estimator(preset.estimator)
-        .with_occlusion(occlusion)
-        .dense();
-    let (rho, e): (Vec<[f64; 3]>, Vec<[f64; 3]>) = mesh
-        .elements
-        .iter()
-        .map(|el| {
-            let m = &scene.materials[scene.polygons[el.polygon as usize].material];
-            (m.rho, m.emission)
-        })
-        .unzip();
-    let f = solver::DenseMatrix::new(mesh.elements.len(), &matrix.data).expect("F");
-    let solution = solver::solve_direct(&f, &rho, &e).expect("solve");
-    let mut h = vec![[0.0; 3]; mesh.elements.len()];
-    f.apply_bands(&solution.b, &mut h);
+    let settings = bake_core::Settings::resolve(&request, &scene.polygons).expect("settings");
+    let bake = bake_core::run(&scene, &settings, &bake_core::Silent).expect("bake");
     Solved {
+        h: bake.irradiance.expect("irradiance"),
+        b: bake.solution.b,
+        mesh: bake.mesh,
         scene,
-        mesh,
-        b: solution.b,
-        h,
     }
 }
 

@@ -459,8 +459,9 @@ fn solver_flags_are_documented_and_checked() {
     for args in [
         &["--bounces", "2", "--solver", "iterative"][..],
         &["--bounces", "2", "--solver", "direct"][..],
-        &["--tolerance", "1e-6"][..],
         &["--solver", "direct", "--max-iterations", "10"][..],
+        &["--solver", "direct", "--tolerance", "1e-6"][..],
+        &["--bounces", "2", "--tolerance", "1e-6"][..],
         &["--solver", "iterative", "--tolerance", "0"][..],
         &["--solver", "iterative", "--tolerance", "1.5"][..],
         &["--solver", "iterative", "--tolerance", "NaN"][..],
@@ -490,6 +491,10 @@ fn solver_flags_are_documented_and_checked() {
     assert_eq!(report.options["tolerance"], 1e-10);
     assert_eq!(report.options["max_iterations"], 77);
     assert!(report.solver.residual.iter().all(|&r| r <= 1e-10));
+    // --tolerance alone asks for the iterative solver rather than being ignored.
+    let report = bake(&input, &["--subdiv", "2", "--tolerance", "1e-9", "--quiet"]);
+    assert_eq!(report.options["solver"], "iterative");
+    assert_eq!(report.options["tolerance"], 1e-9);
     let report = bake(&input, &["--subdiv", "2", "--bounces", "3", "--quiet"]);
     assert_eq!(report.options["solver"], "bounces");
     assert_eq!(report.options["tolerance"], serde_json::Value::Null);

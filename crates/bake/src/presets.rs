@@ -33,16 +33,22 @@ impl Quality {
                 elements_per_diagonal: 8.0,
                 estimator: Estimator::Auto { tolerance: 1e-2 },
                 visibility_samples: 49,
+                link_tolerance: 0.05,
+                link_samples: 9,
             },
             Quality::Normal => Preset {
                 elements_per_diagonal: 16.0,
                 estimator: Estimator::Auto { tolerance: 1e-3 },
                 visibility_samples: 121,
+                link_tolerance: 0.01,
+                link_samples: 25,
             },
             Quality::High => Preset {
                 elements_per_diagonal: 32.0,
                 estimator: Estimator::Auto { tolerance: 1e-4 },
                 visibility_samples: 961,
+                link_tolerance: 0.002,
+                link_samples: 49,
             },
         }
     }
@@ -57,6 +63,11 @@ pub struct Preset {
     pub estimator: Estimator,
     /// Shadow rays per element pair that a polygon may come between.
     pub visibility_samples: u32,
+    /// Hierarchical transport: the largest estimated error of one link's contribution to its
+    /// receiver, relative to the scene's mean radiosity (`--link-tolerance`).
+    pub link_tolerance: f64,
+    /// Hierarchical transport: shadow rays per link that a polygon may come between.
+    pub link_samples: u32,
 }
 
 impl Preset {
@@ -83,6 +94,8 @@ mod tests {
             assert!(a.elements_per_diagonal < b.elements_per_diagonal);
             assert!(tolerance(a) > tolerance(b));
             assert!(a.visibility_samples < b.visibility_samples);
+            assert!(a.link_tolerance > b.link_tolerance);
+            assert!(a.link_samples < b.link_samples);
         }
     }
 }

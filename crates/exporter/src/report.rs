@@ -42,6 +42,9 @@ pub struct Report {
     /// The effects the scene called for (absent in older reports).
     #[serde(default)]
     pub effects: Effects,
+    /// The light transport used and why (absent in older reports).
+    #[serde(default)]
+    pub transport: TransportInfo,
     pub warnings: Vec<String>,
     pub polygons: Vec<PolygonEntry>,
     pub elements: Vec<ElementEntry>,
@@ -86,6 +89,22 @@ pub struct Counts {
     pub pairs_point_polygon: u64,
     #[serde(default)]
     pub pairs_point_point: u64,
+    /// Hierarchical transport: links between nodes (0 for the dense transport).
+    #[serde(default)]
+    pub links: u64,
+    /// Hierarchical transport: nodes of the polygons' hierarchies, leaves (elements) included.
+    #[serde(default)]
+    pub nodes: u64,
+    /// Hierarchical transport: link refinement passes (each followed by a solve).
+    #[serde(default)]
+    pub refinement_passes: u32,
+}
+
+/// The light transport a bake used (`dense` or `hierarchical`) and why.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TransportInfo {
+    pub kind: String,
+    pub reason: String,
 }
 
 /// Which physical effects the scene called for, and why.
@@ -207,6 +226,7 @@ impl Report {
             solver,
             energy: None,
             effects: Effects::default(),
+            transport: TransportInfo::default(),
             warnings: scene.warnings.clone(),
             polygons: Report::polygons_from(scene),
             elements: Report::elements_from(scene, mesh, radiosity)?,

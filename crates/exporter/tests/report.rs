@@ -74,6 +74,9 @@ fn report_holds_the_scene_and_results() {
             pairs_contour: 0,
             pairs_point_polygon: 0,
             pairs_point_point: 0,
+            links: 0,
+            nodes: 0,
+            refinement_passes: 0,
         }
     );
     assert_eq!(report.warnings, fixture.scene.warnings);

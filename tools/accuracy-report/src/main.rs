@@ -21,10 +21,10 @@ mod peak;
 mod plot;
 
 use anyhow::{bail, Context, Result};
+use bake_core::presets::Quality;
 use form_factor::{ContourOptions, Estimator, TriangleRule};
 use measure::{Errors, Field, Run, Scanline, Scene, Setting, Solve};
 use mesher::Subdivision;
-use presets::Quality;
 use std::path::{Path, PathBuf};
 
 #[global_allocator]
@@ -443,7 +443,7 @@ fn row(
     scan_flat: Option<Errors>,
     scan_smooth: Option<Errors>,
 ) -> Row {
-    let m = run.stats.pairs_by_method;
+    let c = run.counts;
     Row {
         scene,
         setting,
@@ -452,9 +452,9 @@ fn row(
         ff_s: run.ff_s,
         solve_s: run.solve_s,
         peak_mb: run.peak_bytes as f64 / 1e6,
-        evaluations: run.stats.evaluations,
-        rays: run.stats.visibility.rays_cast,
-        by_method: [m.contour, m.point_polygon, m.point_point],
+        evaluations: c.kernel_evaluations,
+        rays: c.rays_cast,
+        by_method: [c.pairs_contour, c.pairs_point_polygon, c.pairs_point_point],
         element,
         same_mesh,
         wall_mean: None,
@@ -595,7 +595,7 @@ mod tests {
             let run = measure::bake_once(&cube, &s).unwrap();
             let means = measure::polygon_means(&run.mesh, &run.b);
             let error = measure::max_relative(&means, &extrapolated);
-            let work = run.stats.evaluations;
+            let work = run.counts.kernel_evaluations;
             eprintln!(
                 "{}: {work} evaluations, wall-mean error {error:.3e}",
                 q.name()

@@ -4,7 +4,7 @@
 
 use crate::peak;
 use anyhow::{anyhow, Context, Result};
-use form_factor::{ContourOptions, Estimator, FormFactors, Occluders, Occlusion, Stats};
+use form_factor::{ContourOptions, Estimator};
 use glam::DVec3;
 use importer::Polygon;
 use mesher::{ElementMesh, Subdivision};
@@ -14,6 +14,8 @@ use std::time::Instant;
 /// A loaded scene: its polygons and per-polygon ρ and e.
 pub struct Scene {
     pub name: &'static str,
+    /// The imported scene, as the bake library takes it.
+    pub source: importer::Scene,
     pub polygons: Vec<Polygon>,
     pub rho: Vec<[f64; 3]>,
     pub emission: Vec<[f64; 3]>,
@@ -32,7 +34,8 @@ impl Scene {
             .unzip();
         Ok(Scene {
             name,
-            polygons: scene.polygons,
+            polygons: scene.polygons.clone(),
+            source: scene,
             rho,
             emission,
         })
@@ -75,12 +78,13 @@ pub struct Setting {
 pub struct Run {
     pub mesh: ElementMesh,
     pub b: Vec<[f64; 3]>,
-    /// Wall time of mesh + visibility + form factors + solve (the fastest of the repeats).
+    /// Wall time of the library's bake: mesh + visibility + form factors + solve + energy
+    /// balance (the fastest of the repeats).
     pub time_s: f64,
     pub ff_s: f64,
     pub solve_s: f64,
     pub peak_bytes: usize,
-    pub stats: Stats,
+    pub counts: bake_core::Counts,
 }
 
 /// Bakes `setting` (repeated while it takes under 0.2 s, up to 3 times, keeping the fastest).
@@ -102,40 +106,38 @@ pub fn bake(scene: &Scene, setting: &Setting) -> Result<Run> {
 pub fn bake_once(scene: &Scene, setting: &Setting) -> Result<Run> {
     let base = peak::reset();
     let start = Instant::now();
-    let mesh = mesher::mesh(&scene.polygons, setting.subdivision)?;
-    let occluders = Occluders::new(&scene.polygons)?;
-    let pairs = occluders.occludable_pairs();
-    let mut ff = FormFactors::new(&mesh, setting.contour).with_estimator(setting.estimator);
-    if pairs.effects().occlusion {
-        ff = ff.with_occlusion(Occlusion {
-            occluders: &occluders,
-            pairs: &pairs,
-            samples: setting.samples,
-        });
-    }
-    let ff_start = Instant::now();
-    let dense = ff.dense();
-    let ff_s = ff_start.elapsed().as_secs_f64();
-    let solve_start = Instant::now();
-    let (rho, e) = scene.element_values(&mesh);
-    let f =
-        DenseMatrix::new(dense.n, &dense.data)?.with_accuracy(setting.estimator.row_sum_accuracy());
-    let solution = match setting.solve {
-        Solve::Direct => solver::solve_direct(&f, &rho, &e)?,
-        Solve::Bounces(k) => solver::solve_bounces(&f, &rho, &e, k)?,
+    // The library's one bake with this setting's knobs, on the dense transport the sweep
+    // measures.
+    let request = bake_core::Request {
+        subdivision: Some(setting.subdivision),
+        transport: bake_core::TransportKind::Dense,
+        ..bake_core::Request::default()
     };
-    let solve_s = solve_start.elapsed().as_secs_f64();
+    let mut settings = bake_core::Settings::resolve(&request, &scene.polygons)?;
+    settings.estimator = setting.estimator;
+    settings.contour = setting.contour;
+    settings.visibility_samples = setting.samples;
+    settings.dense_solve = match setting.solve {
+        Solve::Direct => bake_core::Solve::Direct,
+        Solve::Bounces(k) => bake_core::Solve::Bounces(k),
+    };
+    let bake = bake_core::run(&scene.source, &settings, &bake_core::Silent)?;
     let time_s = start.elapsed().as_secs_f64();
-    let stats = dense.stats;
-    drop(dense);
+    let stage = |name: &str| {
+        bake.timings
+            .iter()
+            .filter(|(n, _)| *n == name)
+            .map(|(_, t)| t)
+            .sum::<f64>()
+    };
     Ok(Run {
-        mesh,
-        b: solution.b,
+        ff_s: stage("form_factors"),
+        solve_s: stage("solve"),
         time_s,
-        ff_s,
-        solve_s,
         peak_bytes: peak::peak().saturating_sub(base),
-        stats,
+        counts: bake.counts,
+        mesh: bake.mesh,
+        b: bake.solution.b,
     })
 }
 

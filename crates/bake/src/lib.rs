@@ -1,0 +1,402 @@
+//! One bake: an imported scene in, the solved radiosity of its element mesh out.
+//!
+//! This crate owns the wiring of the pipeline (mesher → visibility → form factors / transport
+//! → solver) so that the `bake` CLI, `tools/accuracy-report`, the benchmarks and the tests run
+//! exactly the same bake: [`Settings::resolve`] turns a [`Request`] (the user's options) and
+//! its quality preset into settings once, and [`run`] performs the stages, gathers ρ and e per
+//! element, chooses the transport, solves, and times every stage.
+//!
+//! It is not the importer or the exporter (the caller reads the scene and writes the outputs)
+//! and knows no file formats or command-line syntax. It is the only crate that knows the
+//! presets ([`presets`]).
+
+pub mod presets;
+mod settings;
+
+pub use settings::{
+    EstimatorKind, Request, Settings, Solve, SolverKind, TransportKind,
+    HIERARCHICAL_SOLVE_TOLERANCE,
+};
+
+use form_factor::{FormFactors, Occluders, Occlusion};
+use importer::Scene;
+use mesher::ElementMesh;
+use solver::{EnergyBalance, Solution, SolveError, BANDS};
+use std::time::Instant;
+use transport::{HierarchicalOptions, HierarchicalTransport, LinkError, Transport};
+
+/// Why a bake failed. [`BakeError::is_input`] tells bad input (exit 1) from internal errors.
+#[derive(Debug, thiserror::Error)]
+pub enum BakeError {
+    #[error("{0}")]
+    Options(String),
+    #[error("cannot subdivide: {0}")]
+    Mesh(#[from] mesher::MeshError),
+    #[error("cannot build the occlusion structure: {0}")]
+    Visibility(#[from] visibility::VisibilityError),
+    #[error("{0}")]
+    TooLarge(String),
+    #[error("no solution: {0}")]
+    Solve(SolveError),
+    #[error("internal error: {0}")]
+    Internal(SolveError),
+}
+
+impl BakeError {
+    /// Whether the input (scene or options) is at fault rather than the baker.
+    pub fn is_input(&self) -> bool {
+        !matches!(self, BakeError::Internal(_))
+    }
+}
+
+/// Progress of the long stages, for a progress bar; called from any thread.
+pub trait Progress: Sync {
+    /// A stage of `total` steps (rows, polygons, iterations) begins.
+    fn start(&self, stage: &str, total: u64);
+    /// `steps` more steps are done.
+    fn advance(&self, steps: u64);
+    /// The stage is over.
+    fn finish(&self);
+}
+
+/// Reports nothing.
+pub struct Silent;
+
+impl Progress for Silent {
+    fn start(&self, _: &str, _: u64) {}
+    fn advance(&self, _: u64) {}
+    fn finish(&self) {}
+}
+
+/// What the bake did, for the report and the summary line.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// Element pairs (dense) or node pairs (hierarchical) whose form factor was computed.
+    pub pairs_evaluated: u64,
+    /// Pairs facing each other whose visibility was decided.
+    pub pairs_tested: u64,
+    /// Of those, pairs some polygon may come between (rays were cast).
+    pub pairs_occludable: u64,
+    pub rays_cast: u64,
+    pub kernel_evaluations: u64,
+    pub pairs_contour: u64,
+    pub pairs_point_polygon: u64,
+    pub pairs_point_point: u64,
+    /// Hierarchical transport: links kept, nodes of the hierarchy, refinement passes.
+    pub links: u64,
+    pub nodes: u64,
+    pub passes: u32,
+}
+
+/// The transport a bake used and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TransportChoice {
+    pub kind: TransportKind,
+    pub reason: String,
+}
+
+/// A finished bake.
+pub struct Bake {
+    pub mesh: ElementMesh,
+    /// Per element: reflectance and emission of its material.
+    pub rho: Vec<[f64; BANDS]>,
+    pub emission: Vec<[f64; BANDS]>,
+    pub solution: Solution,
+    /// The solve that ran.
+    pub solve: Solve,
+    /// `H = F b` per element, when [`Request::irradiance`] asked for it.
+    pub irradiance: Option<Vec<[f64; BANDS]>>,
+    /// Emitted = absorbed + escaped, per band.
+    pub energy: EnergyBalance,
+    pub counts: Counts,
+    pub effects: visibility::Effects,
+    pub transport: TransportChoice,
+    /// Seconds per stage, in pipeline order (`mesh`, `visibility_setup`, `form_factors`,
+    /// `solve`, ...).
+    pub timings: Vec<(&'static str, f64)>,
+    pub warnings: Vec<String>,
+}
+
+impl Bake {
+    /// The report's `options`: the settings as resolved, with the transport used.
+    pub fn options_json(&self, settings: &Settings) -> serde_json::Value {
+        settings.to_json(self.transport.kind)
+    }
+}
+
+/// Scenes up to this many elements get the dense transport under `--transport auto`.
+pub const DENSE_CROSSOVER: usize = 3_000;
+
+/// Bakes `scene` with `settings`: mesh, visibility, transport, solve (and `H = F b` if asked).
+pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Result<Bake, BakeError> {
+    let mut timings = Vec::new();
+    let mut lap = Instant::now();
+    let mut stage = |name: &'static str, lap: &mut Instant| {
+        timings.push((name, lap.elapsed().as_secs_f64()));
+        *lap = Instant::now();
+    };
+    let mut warnings = Vec::new();
+
+    let mesh = mesher::mesh(&scene.polygons, settings.subdivision)?;
+    let n = mesh.elements.len();
+    let (rho, emission) = element_values(scene, &mesh);
+    if emission.iter().all(|x| x.iter().all(|&v| v == 0.0)) {
+        warnings.push("the scene has no emitters: every radiosity is 0".to_string());
+    }
+    stage("mesh", &mut lap);
+
+    let transport = choose_transport(settings, n);
+    let solve = settings.solve(transport.kind);
+    let occluders = Occluders::new(&scene.polygons)?;
+    stage("visibility_setup", &mut lap);
+    let (solution, irradiance, energy, counts, effects) = match transport.kind {
+        TransportKind::Hierarchical => {
+            let max_links = available_memory().map_or(u64::MAX, |bytes| {
+                bytes / transport::hierarchical::BYTES_PER_LINK
+            });
+            let options = HierarchicalOptions {
+                link_tolerance: settings.link_tolerance,
+                samples: settings.link_samples,
+                estimator: settings.estimator,
+                contour: settings.contour,
+                passes: LINK_PASSES,
+                max_links,
+            };
+            progress.start("links", scene.polygons.len() as u64);
+            let built = HierarchicalTransport::build(
+                &scene.polygons,
+                &mesh,
+                &occluders,
+                &rho,
+                &emission,
+                &options,
+                &|k| progress.advance(k),
+            );
+            progress.finish();
+            let h = built.map_err(|e| match e {
+                LinkError::Solve(e) => BakeError::Solve(e),
+                e => BakeError::TooLarge(e.to_string()),
+            })?;
+            stage("links", &mut lap);
+            let s = h.stats();
+            let counts = Counts {
+                pairs_evaluated: s.pairs_evaluated,
+                pairs_tested: s.pairs_tested,
+                pairs_occludable: s.pairs_occludable,
+                rays_cast: s.rays_cast,
+                kernel_evaluations: s.kernel_evaluations,
+                pairs_contour: s.by_method[0],
+                pairs_point_polygon: s.by_method[1],
+                pairs_point_point: s.by_method[2],
+                links: s.links,
+                nodes: s.nodes,
+                passes: s.passes,
+            };
+            let effects = visibility::Effects {
+                occlusion: s.pairs_occludable > 0,
+                reason: if s.pairs_occludable > 0 {
+                    format!(
+                        "{} of the {} node pairs tested may be partly hidden by another \
+                         polygon: shadow rays were cast for them",
+                        s.pairs_occludable, s.pairs_tested
+                    )
+                } else {
+                    format!(
+                        "no polygon can come between any of the {} node pairs tested: no rays \
+                         are cast",
+                        s.pairs_tested
+                    )
+                },
+            };
+            let solution = solve_with(&h, solve, &rho, &emission)?;
+            stage("solve", &mut lap);
+            let (irradiance, energy) = finish(&h, &mesh, &rho, &emission, &solution, settings)?;
+            (solution, irradiance, energy, counts, effects)
+        }
+        _ => {
+            // Dense: every element pair, exact (or within the estimator's tolerance).
+            check_dense_memory(n, &rho, solve)?;
+            let occludable = occluders.occludable_pairs();
+            let effects = occludable.effects();
+            stage("occludable_pairs", &mut lap);
+            let mut form_factors =
+                FormFactors::new(&mesh, settings.contour).with_estimator(settings.estimator);
+            if effects.occlusion {
+                form_factors = form_factors.with_occlusion(Occlusion {
+                    occluders: &occluders,
+                    pairs: &occludable,
+                    samples: settings.visibility_samples,
+                });
+            }
+            progress.start("form factors", n as u64);
+            let matrix = form_factors.dense_with_progress(&|rows| progress.advance(rows));
+            progress.finish();
+            stage("form_factors", &mut lap);
+            let stats = matrix.stats;
+            let counts = Counts {
+                pairs_evaluated: stats.pairs_integrated,
+                pairs_tested: stats.visibility.pairs_tested,
+                pairs_occludable: stats.visibility.pairs_occludable,
+                rays_cast: stats.visibility.rays_cast,
+                kernel_evaluations: stats.evaluations,
+                pairs_contour: stats.pairs_by_method.contour,
+                pairs_point_polygon: stats.pairs_by_method.point_polygon,
+                pairs_point_point: stats.pairs_by_method.point_point,
+                ..Counts::default()
+            };
+            let f = solver::DenseMatrix::new(n, &matrix.data)
+                .map_err(BakeError::Internal)?
+                .with_accuracy(settings.estimator.row_sum_accuracy());
+            let solution = match solve {
+                Solve::Direct => {
+                    solver::solve_direct(&f, &rho, &emission).map_err(BakeError::Solve)?
+                }
+                _ => solve_with(&f, solve, &rho, &emission)?,
+            };
+            stage("solve", &mut lap);
+            let (irradiance, energy) = finish(&f, &mesh, &rho, &emission, &solution, settings)?;
+            (solution, irradiance, energy, counts, effects)
+        }
+    };
+    stage("energy", &mut lap);
+
+    Ok(Bake {
+        mesh,
+        rho,
+        emission,
+        solution,
+        solve,
+        irradiance,
+        energy,
+        counts,
+        effects,
+        transport,
+        timings,
+        warnings,
+    })
+}
+
+/// GMRES or the bounce series through any operator (`Solve::Direct` needs the matrix).
+fn solve_with<O: solver::Operator>(
+    op: &O,
+    solve: Solve,
+    rho: &[[f64; BANDS]],
+    emission: &[[f64; BANDS]],
+) -> Result<Solution, BakeError> {
+    match solve {
+        Solve::Iterative(options) => solver::solve_iterative(op, rho, emission, &options),
+        Solve::Bounces(k) => solver::solve_bounces(op, rho, emission, k),
+        Solve::Direct => {
+            return Err(BakeError::Options(
+                "the direct solver needs the dense transport".into(),
+            ))
+        }
+    }
+    .map_err(BakeError::Solve)
+}
+
+/// Linking passes of the hierarchical transport (the first with B = e).
+pub const LINK_PASSES: u32 = 4;
+
+/// `H = F b` per element and band.
+type Irradiance = Vec<[f64; BANDS]>;
+
+/// `H = F b` if asked for, and the energy balance, through any transport.
+fn finish<T: Transport>(
+    transport: &T,
+    mesh: &ElementMesh,
+    rho: &[[f64; BANDS]],
+    emission: &[[f64; BANDS]],
+    solution: &Solution,
+    settings: &Settings,
+) -> Result<(Option<Irradiance>, EnergyBalance), BakeError> {
+    let irradiance = settings
+        .irradiance
+        .then(|| transport.irradiance(&solution.b));
+    let areas: Vec<f64> = mesh.elements.iter().map(|el| el.area).collect();
+    let energy = solver::energy_balance(transport, &areas, rho, emission, &solution.b)
+        .map_err(BakeError::Internal)?;
+    Ok((irradiance, energy))
+}
+
+/// Which transport `settings` asks for on a scene of `n` elements, and why.
+fn choose_transport(settings: &Settings, n: usize) -> TransportChoice {
+    match settings.transport {
+        TransportKind::Dense => TransportChoice {
+            kind: TransportKind::Dense,
+            reason: "--transport dense".into(),
+        },
+        TransportKind::Hierarchical => TransportChoice {
+            kind: TransportKind::Hierarchical,
+            reason: "--transport hierarchical".into(),
+        },
+        TransportKind::Auto if settings.direct_requested => TransportChoice {
+            kind: TransportKind::Dense,
+            reason: "--solver direct needs the dense transport".into(),
+        },
+        TransportKind::Auto if n <= DENSE_CROSSOVER => TransportChoice {
+            kind: TransportKind::Dense,
+            reason: format!(
+                "{n} elements, at most the crossover of {DENSE_CROSSOVER}: the dense transport \
+                 is exact and about as fast"
+            ),
+        },
+        TransportKind::Auto => TransportChoice {
+            kind: TransportKind::Hierarchical,
+            reason: format!(
+                "{n} elements, more than the crossover of {DENSE_CROSSOVER}: the hierarchical \
+                 transport's links grow about linearly with the elements, the dense one's pairs \
+                 quadratically"
+            ),
+        },
+    }
+}
+
+/// Refuses a dense bake whose matrices would not fit in the memory available now.
+fn check_dense_memory(n: usize, rho: &[[f64; BANDS]], solve: Solve) -> Result<(), BakeError> {
+    // F itself, plus one n × n LU copy per distinct reflectance band for the direct solver.
+    let copies = match solve {
+        Solve::Direct => 1 + distinct_bands(rho),
+        _ => 1,
+    } as u128;
+    let bytes = (n as u128) * (n as u128) * 8 * copies;
+    if let Some(available) = available_memory() {
+        if bytes > available as u128 {
+            return Err(BakeError::TooLarge(format!(
+                "{n} elements need {:.1} GiB for the dense transport ({copies} n×n matrices), \
+                 but only {:.1} GiB of memory is available; use --transport hierarchical, a \
+                 larger --max-element-size or a smaller --subdiv",
+                bytes as f64 / GIB,
+                available as f64 / GIB
+            )));
+        }
+    }
+    Ok(())
+}
+
+const GIB: f64 = (1u64 << 30) as f64;
+
+/// Distinct ρ columns (a grey scene has one).
+fn distinct_bands(rho: &[[f64; BANDS]]) -> usize {
+    let same = |a: usize, b: usize| rho.iter().all(|r| r[a] == r[b]);
+    1 + usize::from(!same(0, 1)) + usize::from(!same(0, 2) && !same(1, 2))
+}
+
+/// `MemAvailable` of `/proc/meminfo` in bytes (`None` where there is no such file).
+pub fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Per element: ρ and e of its polygon's material (the one place they are gathered).
+pub fn element_values(scene: &Scene, mesh: &ElementMesh) -> (Vec<[f64; BANDS]>, Vec<[f64; BANDS]>) {
+    mesh.elements
+        .iter()
+        .map(|el| {
+            let m = &scene.materials[scene.polygons[el.polygon as usize].material];
+            (m.rho, m.emission)
+        })
+        .unzip()
+}

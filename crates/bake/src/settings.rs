@@ -1,0 +1,274 @@
+//! What a bake was asked for ([`Request`]: the CLI's flags, `None` where the user gave none)
+//! and what it runs with ([`Settings`]: the preset and defaults filled in, resolved once).
+
+use crate::presets::Quality;
+use crate::BakeError;
+use form_factor::{ContourOptions, Estimator, TriangleRule};
+use importer::Polygon;
+use mesher::Subdivision;
+use solver::IterativeOptions;
+
+/// `--ff-estimator`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EstimatorKind {
+    Contour,
+    PointPolygon,
+    PointPoint,
+    Auto,
+}
+
+/// `--solver`: how the dense transport's system is solved.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SolverKind {
+    /// LU factorisation (dense transport only).
+    Direct,
+    /// Restarted GMRES.
+    Iterative,
+}
+
+/// `--transport`: how light transport between elements is represented.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TransportKind {
+    /// Dense for small scenes (exact), hierarchical above [`crate::DENSE_CROSSOVER`] elements.
+    #[default]
+    Auto,
+    /// Every element pair's form factor in an n × n matrix.
+    Dense,
+    /// Hierarchical radiosity: links between the coarsest node pairs that meet the link
+    /// tolerance.
+    Hierarchical,
+}
+
+impl TransportKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            TransportKind::Auto => "auto",
+            TransportKind::Dense => "dense",
+            TransportKind::Hierarchical => "hierarchical",
+        }
+    }
+}
+
+/// How the radiosity system is solved.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Solve {
+    /// LU per distinct ρ band (dense only).
+    Direct,
+    /// GMRES to a relative residual.
+    Iterative(IterativeOptions),
+    /// Direct light plus exactly this many interreflections.
+    Bounces(u32),
+}
+
+impl Solve {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Solve::Direct => "direct",
+            Solve::Iterative(_) => "iterative",
+            Solve::Bounces(_) => "bounces",
+        }
+    }
+}
+
+/// The options of one bake as the user gave them: `None` means "from the preset or default".
+#[derive(Clone, Debug, PartialEq)]
+pub struct Request {
+    pub quality: Quality,
+    pub subdivision: Option<Subdivision>,
+    pub contour: ContourOptions,
+    pub ff_estimator: Option<EstimatorKind>,
+    pub ff_tolerance: Option<f64>,
+    /// Points per triangle of `point-polygon` (1, 3 or 7).
+    pub ff_points: u32,
+    pub visibility_samples: Option<u32>,
+    pub solver: Option<SolverKind>,
+    pub bounces: Option<u32>,
+    pub tolerance: Option<f64>,
+    pub max_iterations: Option<u32>,
+    pub transport: TransportKind,
+    pub link_tolerance: Option<f64>,
+    /// Compute the irradiance `H = F b` (lightmaps need it).
+    pub irradiance: bool,
+}
+
+impl Default for Request {
+    /// `bake IN OUT` with no options.
+    fn default() -> Self {
+        Request {
+            quality: Quality::Normal,
+            subdivision: None,
+            contour: ContourOptions::default(),
+            ff_estimator: None,
+            ff_tolerance: None,
+            ff_points: 3,
+            visibility_samples: None,
+            solver: None,
+            bounces: None,
+            tolerance: None,
+            max_iterations: None,
+            transport: TransportKind::Auto,
+            link_tolerance: None,
+            irradiance: false,
+        }
+    }
+}
+
+/// GMRES tolerance of the hierarchical transport when `--tolerance` is not given: its links are
+/// accurate to about the link tolerance (1e-2 … 1e-4 of the mean radiosity), so twelve digits
+/// of the linear solve would buy nothing.
+pub const HIERARCHICAL_SOLVE_TOLERANCE: f64 = 1e-6;
+
+/// Everything one bake runs with, resolved from a [`Request`] and its preset.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settings {
+    pub quality: Quality,
+    pub subdivision: Subdivision,
+    pub contour: ContourOptions,
+    pub estimator: Estimator,
+    /// Shadow rays per occludable element pair (dense transport).
+    pub visibility_samples: u32,
+    /// The transport asked for (`Auto` is decided per scene by [`crate::run`]).
+    pub transport: TransportKind,
+    /// Solve for the dense transport.
+    pub dense_solve: Solve,
+    /// Solve for the hierarchical transport (never `Direct`).
+    pub hierarchical_solve: Solve,
+    /// Whether `--solver direct` was given (then `auto` keeps the dense transport).
+    pub direct_requested: bool,
+    /// Largest estimated error of a link's contribution to its receiver's radiosity, relative
+    /// to the scene's mean radiosity.
+    pub link_tolerance: f64,
+    /// Shadow rays per occludable link.
+    pub link_samples: u32,
+    pub irradiance: bool,
+}
+
+impl Settings {
+    /// Fills in the preset of `request.quality` and the defaults; checks the combinations.
+    pub fn resolve(request: &Request, polygons: &[Polygon]) -> Result<Settings, BakeError> {
+        let preset = request.quality.preset();
+        let subdivision = request
+            .subdivision
+            .unwrap_or_else(|| Subdivision::MaxSize(preset.max_element_size(polygons)));
+        let estimator = estimator(request, preset.estimator);
+        if request.transport == TransportKind::Hierarchical
+            && request.solver == Some(SolverKind::Direct)
+        {
+            return Err(BakeError::Options(
+                "--solver direct needs the dense transport (the hierarchical transport is \
+                 solved by GMRES); use --transport dense or --solver iterative"
+                    .into(),
+            ));
+        }
+        if let Some(t) = request.link_tolerance {
+            if !(t.is_finite() && t > 0.0) {
+                return Err(BakeError::Options(format!(
+                    "--link-tolerance must be a positive number, got {t}"
+                )));
+            }
+        }
+        let default = IterativeOptions::default();
+        let iterative = |tolerance: f64| IterativeOptions {
+            tolerance: request.tolerance.unwrap_or(tolerance),
+            max_iterations: request.max_iterations.unwrap_or(default.max_iterations),
+            ..default
+        };
+        let (dense_solve, hierarchical_solve) = match (request.bounces, request.solver) {
+            (Some(k), _) => (Solve::Bounces(k), Solve::Bounces(k)),
+            (None, Some(SolverKind::Iterative)) => (
+                Solve::Iterative(iterative(default.tolerance)),
+                Solve::Iterative(iterative(HIERARCHICAL_SOLVE_TOLERANCE)),
+            ),
+            (None, _) => (
+                Solve::Direct,
+                Solve::Iterative(iterative(HIERARCHICAL_SOLVE_TOLERANCE)),
+            ),
+        };
+        Ok(Settings {
+            quality: request.quality,
+            subdivision,
+            contour: request.contour,
+            estimator,
+            visibility_samples: request
+                .visibility_samples
+                .unwrap_or(preset.visibility_samples),
+            transport: request.transport,
+            dense_solve,
+            hierarchical_solve,
+            direct_requested: request.solver == Some(SolverKind::Direct),
+            link_tolerance: request.link_tolerance.unwrap_or(preset.link_tolerance),
+            link_samples: request.visibility_samples.unwrap_or(preset.link_samples),
+            irradiance: request.irradiance,
+        })
+    }
+
+    /// The solve the given transport runs with.
+    pub fn solve(&self, transport: TransportKind) -> Solve {
+        match transport {
+            TransportKind::Hierarchical => self.hierarchical_solve,
+            _ => self.dense_solve,
+        }
+    }
+
+    /// The resolved options for the report's `options` object, given the transport the bake
+    /// used (the CLI adds its output options to it).
+    pub fn to_json(&self, used: TransportKind) -> serde_json::Value {
+        let (estimator, ff_tolerance, ff_points) = match self.estimator {
+            Estimator::Contour => ("contour", None, None),
+            Estimator::PointPolygon(rule) => ("point-polygon", None, Some(rule.points())),
+            Estimator::PointPoint => ("point-point", None, None),
+            Estimator::Auto { tolerance } => ("auto", Some(tolerance), None),
+        };
+        let subdivision = match self.subdivision {
+            Subdivision::Count(n) => serde_json::json!({ "subdiv": n }),
+            Subdivision::MaxSize(l) => serde_json::json!({ "max_element_size": l }),
+        };
+        let solve = self.solve(used);
+        let (tolerance, max_iterations, bounces) = match solve {
+            Solve::Iterative(o) => (Some(o.tolerance), Some(o.max_iterations), None),
+            Solve::Bounces(k) => (None, None, Some(k)),
+            Solve::Direct => (None, None, None),
+        };
+        let hierarchical = used == TransportKind::Hierarchical;
+        serde_json::json!({
+            "quality": self.quality.name(),
+            "subdivision": subdivision,
+            "transport": used.name(),
+            "transport_requested": self.transport.name(),
+            "solver": solve.name(),
+            "tolerance": tolerance,
+            "max_iterations": max_iterations,
+            "bounces": bounces,
+            "ff_segments": self.contour.segments,
+            "ff_order": self.contour.order,
+            "ff_auto_order": self.contour.auto_order,
+            "ff_near_ratio": self.contour.near_ratio,
+            "ff_estimator": estimator,
+            "ff_tolerance": ff_tolerance,
+            "ff_points": ff_points,
+            "visibility_samples": self.visibility_samples,
+            "link_tolerance": hierarchical.then_some(self.link_tolerance),
+            "link_samples": hierarchical.then_some(self.link_samples),
+        })
+    }
+}
+
+/// The form-factor estimator: explicit options over the preset's.
+fn estimator(request: &Request, preset: Estimator) -> Estimator {
+    let preset_tolerance = match preset {
+        Estimator::Auto { tolerance } => tolerance,
+        _ => form_factor::MIN_TOLERANCE,
+    };
+    match (request.ff_estimator, request.ff_tolerance) {
+        (None, None) => preset,
+        (None | Some(EstimatorKind::Auto), Some(tolerance)) => Estimator::Auto { tolerance },
+        (Some(EstimatorKind::Auto), None) => Estimator::Auto {
+            tolerance: preset_tolerance,
+        },
+        (Some(EstimatorKind::Contour), _) => Estimator::Contour,
+        (Some(EstimatorKind::PointPoint), _) => Estimator::PointPoint,
+        (Some(EstimatorKind::PointPolygon), _) => Estimator::PointPolygon(
+            TriangleRule::from_points(request.ff_points).unwrap_or(TriangleRule::Three),
+        ),
+    }
+}

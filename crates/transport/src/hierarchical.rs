@@ -1,0 +1,804 @@
+//! Hierarchical radiosity (Hanrahan, Salzman & Aupperle 1991, "A rapid hierarchical radiosity
+//! algorithm", SIGGRAPH '91).
+//!
+//! Each input polygon is the root of a tree whose leaves are its elements (the mesher's grid):
+//! a quad's nu × nv grid is halved along its longer side until single elements remain (grids
+//! need not be powers of two), a triangle's n × n split is cut into four similar triangles
+//! while n is even and into its elements when n is odd. Light moves along *links* between two
+//! nodes p and q, each carrying `G = A_p F_pq = A_q F_qp` (the form-factor crate's estimator on
+//! the two node polygons, times a visible fraction from shadow rays where some polygon can come
+//! between them), so the operator is exactly reciprocal and conserves energy.
+//!
+//! **Linking (BF refinement, HSA91 §4).** Linking starts from every pair of polygons
+//! ([`HierarchicalTransport::build`]; part 2 of the plan replaces this O(P²) step with
+//! clusters). A link is kept when the estimated error of its contribution to its receiver's
+//! radiosity is at most `ε = link_tolerance × B̄` (B̄ the scene's area-weighted mean radiosity):
+//!
+//! ```text
+//!   error at p  =  ρ_p · B_q · (G · variation + G₀ · uncertainty) / A_p     (and p ↔ q)
+//! ```
+//!
+//! with `variation` the spread of the point-to-polygon kernel over the two nodes relative to
+//! its mean (`form_factor::SurfacePair::variation`: 0 for a distant pair, ~1 at a corner), G₀
+//! the unoccluded value and `uncertainty` 1 when some polygon can come between the nodes (a
+//! shadow boundary may cross the pair, whatever its few shadow rays saw) or when a node straddles the other's plane (only its front
+//! part receives light, but a link spreads it over all of the node), 0 otherwise. Otherwise the larger node of
+//! the pair (by area) is split and its children are linked to the other node recursively;
+//! leaf–leaf pairs are always kept. The integrator's own uncertainty plays no part: the
+//! estimators are accurate to their tolerance.
+//!
+//! **Passes.** B is not known before solving, so (as in HSA91) linking runs in passes: first
+//! with `B = e` (only links from emitters refine), then, after a coarse solve, again over the
+//! kept links with the solved B, until no link is refined (or [`HierarchicalOptions::passes`]
+//! is reached). Links are never coarsened.
+//!
+//! **Gather and push–pull.** `y = F x` ([`solver::Operator`]): pull x up the trees
+//! (area-weighted means), gather `g_p = Σ_links F_pq x_q` at every node, push g down (each
+//! element receives the sum over its ancestors). Sums run in a fixed order, so the result is
+//! bit-identical for any thread count; refinement is deterministic too (each candidate's
+//! shadow rays are seeded by its node pair, passes visit links in a fixed order).
+
+use form_factor::{surface_pair, ContourOptions, Estimator, Method, Occluders, PairKind, Surface};
+use glam::DVec3;
+use importer::Polygon;
+use mesher::ElementMesh;
+use rayon::prelude::*;
+use solver::{IterativeOptions, Operator, SolveError, BANDS};
+use std::sync::atomic::{AtomicU64, Ordering};
+use visibility::{pair_seed, Patch};
+
+/// Settings of [`HierarchicalTransport::build`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HierarchicalOptions {
+    /// `ε / B̄`: the largest estimated error of one link's contribution to its receiver,
+    /// relative to the scene's mean radiosity.
+    pub link_tolerance: f64,
+    /// Shadow rays per link that a polygon can come between.
+    pub samples: u32,
+    /// The form-factor estimator for link values.
+    pub estimator: Estimator,
+    pub contour: ContourOptions,
+    /// Most linking passes (the first with B = e).
+    pub passes: u32,
+    /// Refuse to keep more links than this (a memory guard: each link costs about
+    /// [`BYTES_PER_LINK`] bytes).
+    pub max_links: u64,
+}
+
+/// Memory per kept link: the link itself while refining (48 bytes) and two operator entries
+/// (receiver index and coefficient, 12 bytes each, plus offsets).
+pub const BYTES_PER_LINK: u64 = 80;
+
+impl Default for HierarchicalOptions {
+    fn default() -> Self {
+        HierarchicalOptions {
+            link_tolerance: 0.01,
+            samples: 25,
+            estimator: Estimator::Auto { tolerance: 1e-3 },
+            contour: ContourOptions::default(),
+            passes: 4,
+            max_links: u64::MAX,
+        }
+    }
+}
+
+/// What building the hierarchy did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct HierarchicalStats {
+    /// Nodes of all trees, leaves (= elements) included.
+    pub nodes: u64,
+    /// Links kept.
+    pub links: u64,
+    /// Node pairs whose form factor was estimated (kept or refined).
+    pub pairs_evaluated: u64,
+    /// Node pairs facing each other whose occludability was tested.
+    pub pairs_tested: u64,
+    /// Of those, pairs some polygon may come between (shadow rays were cast).
+    pub pairs_occludable: u64,
+    pub rays_cast: u64,
+    pub kernel_evaluations: u64,
+    /// Evaluated pairs by estimator: contour, point-to-polygon, point-to-point.
+    pub by_method: [u64; 3],
+    /// Linking passes run.
+    pub passes: u32,
+}
+
+/// Why the hierarchy could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum LinkError {
+    #[error(
+        "the hierarchy needs more than {limit} links (about {gib:.1} GiB) at --link-tolerance \
+         {tolerance}; raise --link-tolerance or use a larger --max-element-size"
+    )]
+    TooManyLinks {
+        limit: u64,
+        gib: f64,
+        tolerance: f64,
+    },
+    #[error("polygon {0} has no elements in the mesh")]
+    Mesh(usize),
+    #[error("a coarse solve between linking passes failed: {0}")]
+    Solve(#[from] SolveError),
+}
+
+/// A node of a polygon's tree.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    surface: Surface,
+    polygon: u32,
+    /// Children: `children[first..first + count]`; no children for a leaf.
+    first: u32,
+    count: u32,
+}
+
+/// A kept link between nodes p and q.
+#[derive(Clone, Copy, Debug)]
+struct Link {
+    p: u32,
+    q: u32,
+    /// `A_p F_pq`, visible part.
+    g: f64,
+    /// `G · variation + G₀ · uncertainty`: the error factor of the BF criterion.
+    k: f64,
+    /// Whether some polygon can come between p and q (children must test again).
+    occludable: bool,
+}
+
+/// The scene's light transport as links between nodes of per-polygon hierarchies.
+pub struct HierarchicalTransport {
+    /// Elements (leaves): nodes `0..n` are elements `0..n`.
+    n: usize,
+    nodes: Vec<Node>,
+    children: Vec<u32>,
+    /// Operator entries by receiver node: `sources[offsets[r]..offsets[r + 1]]` with the
+    /// coefficients `F_rs` in `coefficients`.
+    offsets: Vec<u64>,
+    sources: Vec<u32>,
+    coefficients: Vec<f64>,
+    accuracy: f64,
+    stats: HierarchicalStats,
+}
+
+/// Work counters summed over threads.
+#[derive(Default)]
+struct Counters {
+    pairs_evaluated: AtomicU64,
+    pairs_tested: AtomicU64,
+    pairs_occludable: AtomicU64,
+    rays_cast: AtomicU64,
+    kernel_evaluations: AtomicU64,
+    by_method: [AtomicU64; 3],
+}
+
+/// What the linking of one pass needs.
+struct Linker<'a> {
+    nodes: &'a [Node],
+    children: &'a [u32],
+    occluders: &'a Occluders,
+    options: &'a HierarchicalOptions,
+    /// Per node: max over bands of ρ, and of the current radiosity estimate.
+    rho: &'a [f64],
+    b: &'a [f64],
+    epsilon: f64,
+    counters: &'a Counters,
+}
+
+impl HierarchicalTransport {
+    /// Builds the trees over `mesh` (made from `polygons`), links every polygon pair by BF
+    /// refinement in passes (coarse GMRES solves in between), and assembles the operator.
+    /// `rho` and `e` are per element; `progress(k)` is called as polygons of the first pass
+    /// finish.
+    pub fn build(
+        polygons: &[Polygon],
+        mesh: &ElementMesh,
+        occluders: &Occluders,
+        rho: &[[f64; BANDS]],
+        e: &[[f64; BANDS]],
+        options: &HierarchicalOptions,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> Result<HierarchicalTransport, LinkError> {
+        let n = mesh.elements.len();
+        let (nodes, children, roots) = build_trees(polygons, mesh)?;
+        let counters = Counters::default();
+        let node_rho = node_max(&nodes, &children, n, rho, |x| x);
+
+        // Pass 1: B = e, and B̄ from the furnace estimate Σ A e / Σ A (1 − ρ) (a closed grey
+        // scene's mean radiosity).
+        let mut b_node = node_max(&nodes, &children, n, e, |x| x);
+        let (mut emitted, mut absorbing) = (0.0, 0.0);
+        for (k, el) in mesh.elements.iter().enumerate() {
+            emitted += el.area * max3(e[k]);
+            absorbing += el.area * (1.0 - max3(rho[k])).max(1e-3);
+        }
+        let mean_b = if absorbing > 0.0 {
+            emitted / absorbing
+        } else {
+            0.0
+        };
+        let limit = options.max_links;
+        let too_many = || LinkError::TooManyLinks {
+            limit,
+            gib: limit as f64 * BYTES_PER_LINK as f64 / (1u64 << 30) as f64,
+            tolerance: options.link_tolerance,
+        };
+        let mut links: Vec<Link> = {
+            let linker = Linker {
+                nodes: &nodes,
+                children: &children,
+                occluders,
+                options,
+                rho: &node_rho,
+                b: &b_node,
+                epsilon: options.link_tolerance * mean_b,
+                counters: &counters,
+            };
+            let rows: Vec<Vec<Link>> = (0..roots.len())
+                .into_par_iter()
+                .map(|p| {
+                    let mut row = Vec::new();
+                    for q in p + 1..roots.len() {
+                        linker.link(roots[p], roots[q], true, &mut row);
+                    }
+                    progress(1);
+                    row
+                })
+                .collect();
+            let total: usize = rows.iter().map(Vec::len).sum();
+            if total as u64 > limit {
+                return Err(too_many());
+            }
+            let mut all = Vec::with_capacity(total);
+            for row in rows {
+                all.extend(row);
+            }
+            all
+        };
+        let mut passes = 1;
+        let accuracy = options.estimator.row_sum_accuracy();
+        while passes < options.passes {
+            // A coarse solve with the current links, then re-examine them with its B.
+            let op = assemble(n, &nodes, &children, &links, accuracy);
+            let coarse = IterativeOptions {
+                tolerance: 1e-3,
+                max_iterations: 500,
+                ..IterativeOptions::default()
+            };
+            let solution = solver::solve_iterative(&op, rho, e, &coarse)?;
+            b_node = node_max(&nodes, &children, n, &solution.b, |x| x);
+            let mean = mesh
+                .elements
+                .iter()
+                .zip(&solution.b)
+                .map(|(el, b)| el.area * max3(*b))
+                .sum::<f64>()
+                / mesh
+                    .elements
+                    .iter()
+                    .map(|el| el.area)
+                    .sum::<f64>()
+                    .max(f64::MIN_POSITIVE);
+            drop(op);
+            let linker = Linker {
+                nodes: &nodes,
+                children: &children,
+                occluders,
+                options,
+                rho: &node_rho,
+                b: &b_node,
+                epsilon: options.link_tolerance * mean,
+                counters: &counters,
+            };
+            let refined: Vec<Option<Vec<Link>>> = links
+                .par_iter()
+                .map(|link| linker.refine_kept(link))
+                .collect();
+            passes += 1;
+            if refined.iter().all(Option::is_none) {
+                break;
+            }
+            let total: usize = refined.iter().map(|r| r.as_ref().map_or(1, Vec::len)).sum();
+            if total as u64 > limit {
+                return Err(too_many());
+            }
+            let mut next = Vec::with_capacity(total);
+            for (link, r) in links.iter().zip(refined) {
+                match r {
+                    Some(sub) => next.extend(sub),
+                    None => next.push(*link),
+                }
+            }
+            links = next;
+        }
+        let mut transport = assemble(n, &nodes, &children, &links, accuracy);
+        transport.stats = HierarchicalStats {
+            nodes: nodes.len() as u64,
+            links: links.len() as u64,
+            pairs_evaluated: counters.pairs_evaluated.load(Ordering::Relaxed),
+            pairs_tested: counters.pairs_tested.load(Ordering::Relaxed),
+            pairs_occludable: counters.pairs_occludable.load(Ordering::Relaxed),
+            rays_cast: counters.rays_cast.load(Ordering::Relaxed),
+            kernel_evaluations: counters.kernel_evaluations.load(Ordering::Relaxed),
+            by_method: [0, 1, 2].map(|k| counters.by_method[k].load(Ordering::Relaxed)),
+            passes,
+        };
+        transport.nodes = nodes;
+        transport.children = children;
+        Ok(transport)
+    }
+
+    /// What building it did.
+    pub fn stats(&self) -> HierarchicalStats {
+        self.stats
+    }
+
+    /// `y = F x` for `B` bands at once (B = 1 or 3), the same bits per band either way.
+    fn apply_generic<const B: usize>(&self, x: &[[f64; B]], y: &mut [[f64; B]]) {
+        let total = self.nodes.len();
+        // Pull: leaves are the elements; interior nodes (created after their children) are
+        // area-weighted means of their children.
+        let mut xn = vec![[0.0; B]; total];
+        xn[..self.n].copy_from_slice(&x[..self.n]);
+        for u in self.n..total {
+            let node = &self.nodes[u];
+            let mut sum = [0.0; B];
+            for &c in &self.children[node.first as usize..(node.first + node.count) as usize] {
+                let a = self.nodes[c as usize].surface.area;
+                for band in 0..B {
+                    sum[band] += a * xn[c as usize][band];
+                }
+            }
+            for band in 0..B {
+                xn[u][band] = sum[band] / node.surface.area;
+            }
+        }
+        // Gather over links, each receiver summed in its fixed entry order.
+        let mut g = vec![[0.0; B]; total];
+        g.par_chunks_mut(1024).enumerate().for_each(|(chunk, out)| {
+            for (k, gr) in out.iter_mut().enumerate() {
+                let r = chunk * 1024 + k;
+                let (lo, hi) = (self.offsets[r] as usize, self.offsets[r + 1] as usize);
+                let mut sum = [0.0; B];
+                for (&s, &f) in self.sources[lo..hi].iter().zip(&self.coefficients[lo..hi]) {
+                    for band in 0..B {
+                        sum[band] += f * xn[s as usize][band];
+                    }
+                }
+                *gr = sum;
+            }
+        });
+        // Push: parents before children (reverse creation order).
+        for u in (self.n..total).rev() {
+            let node = self.nodes[u];
+            let gu = g[u];
+            for &c in &self.children[node.first as usize..(node.first + node.count) as usize] {
+                for band in 0..B {
+                    g[c as usize][band] += gu[band];
+                }
+            }
+        }
+        y[..self.n].copy_from_slice(&g[..self.n]);
+    }
+}
+
+impl Operator for HierarchicalTransport {
+    fn n(&self) -> usize {
+        self.n
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let xs: Vec<[f64; 1]> = x.iter().map(|&v| [v]).collect();
+        let mut ys = vec![[0.0; 1]; self.n];
+        self.apply_generic(&xs, &mut ys);
+        for (yi, v) in y.iter_mut().zip(ys) {
+            *yi = v[0];
+        }
+    }
+
+    fn apply_bands(&self, x: &[[f64; BANDS]], y: &mut [[f64; BANDS]]) {
+        self.apply_generic(x, y);
+    }
+
+    fn accuracy(&self) -> f64 {
+        self.accuracy
+    }
+}
+
+impl crate::Transport for HierarchicalTransport {}
+
+impl Linker<'_> {
+    /// Links nodes p and q (a candidate pair not yet evaluated): appends the kept links of
+    /// the pair and, where it refines, of its children. `occludable`: whether the parent pair
+    /// could be occluded (children of an unoccludable pair cannot be).
+    fn link(&self, p: u32, q: u32, occludable: bool, out: &mut Vec<Link>) {
+        let Some(link) = self.evaluate(p, q, occludable) else {
+            return;
+        };
+        self.refine_or_keep(link, out);
+    }
+
+    /// Keeps `link` if it meets the tolerance or cannot be split, else links its split.
+    fn refine_or_keep(&self, link: Link, out: &mut Vec<Link>) {
+        match self.split(&link) {
+            None => out.push(link),
+            Some((parent, other, parent_is_p)) => {
+                let node = &self.nodes[parent as usize];
+                for &c in &self.children[node.first as usize..(node.first + node.count) as usize] {
+                    let (a, b) = if parent_is_p { (c, other) } else { (other, c) };
+                    self.link(a, b, link.occludable, out);
+                }
+            }
+        }
+    }
+
+    /// A kept link re-examined with new radiosities: `None` if it stays, else its refinement.
+    fn refine_kept(&self, link: &Link) -> Option<Vec<Link>> {
+        self.split(link)?;
+        let mut out = Vec::new();
+        self.refine_or_keep(*link, &mut out);
+        Some(out)
+    }
+
+    /// Which node to split (HSA91: the larger), with the other and whether the split one is
+    /// `p`; `None` when the link meets the tolerance or both ends are elements.
+    fn split(&self, link: &Link) -> Option<(u32, u32, bool)> {
+        let (p, q) = (link.p as usize, link.q as usize);
+        let (np, nq) = (&self.nodes[p], &self.nodes[q]);
+        let error = (self.rho[p] * self.b[q] * link.k / np.surface.area)
+            .max(self.rho[q] * self.b[p] * link.k / nq.surface.area);
+        if error <= self.epsilon || error.is_nan() {
+            return None;
+        }
+        let (split_p, split_q) = (np.count > 0, nq.count > 0);
+        match (split_p, split_q) {
+            (false, false) => None,
+            (true, false) => Some((link.p, link.q, true)),
+            (false, true) => Some((link.q, link.p, false)),
+            (true, true) if np.surface.area >= nq.surface.area => Some((link.p, link.q, true)),
+            (true, true) => Some((link.q, link.p, false)),
+        }
+    }
+
+    /// The pair's value, error factor and visibility; `None` when the nodes cannot exchange
+    /// light or every shadow ray is blocked and the pair is small enough to drop.
+    fn evaluate(&self, p: u32, q: u32, parent_occludable: bool) -> Option<Link> {
+        let (np, nq) = (&self.nodes[p as usize], &self.nodes[q as usize]);
+        if np.polygon == nq.polygon {
+            return None;
+        }
+        let options = self.options;
+        let pair = surface_pair(
+            &np.surface,
+            &nq.surface,
+            &options.contour,
+            options.estimator,
+        )?;
+        let c = self.counters;
+        c.pairs_evaluated.fetch_add(1, Ordering::Relaxed);
+        c.kernel_evaluations
+            .fetch_add(pair.evaluations, Ordering::Relaxed);
+        let method = match pair.method {
+            Method::Contour => 0,
+            Method::PointPolygon => 1,
+            Method::PointPoint => 2,
+        };
+        c.by_method[method].fetch_add(1, Ordering::Relaxed);
+        // A node straddling the other's plane was clipped to its front part, but the link
+        // pushes its light to all of the node: as uncertain as a shadow boundary.
+        let clipped = pair.kind == PairKind::Clipped;
+        let (mut fraction, mut uncertainty, mut occludable) =
+            (1.0, if clipped { 1.0 } else { 0.0 }, false);
+        if parent_occludable {
+            c.pairs_tested.fetch_add(1, Ordering::Relaxed);
+            let a = patch(np);
+            let b = patch(nq);
+            if self.occluders.can_occlude(&a, &b) {
+                occludable = true;
+                c.pairs_occludable.fetch_add(1, Ordering::Relaxed);
+                let v = self.occluders.visibility(
+                    &a,
+                    &b,
+                    options.samples,
+                    pair_seed(p as usize, q as usize),
+                );
+                c.rays_cast.fetch_add(u64::from(v.rays), Ordering::Relaxed);
+                fraction = v.fraction;
+                // Occludable: a shadow boundary may cross the pair even where every ray of
+                // the sample arrived (a few rays per node miss small occluders).
+                uncertainty = 1.0;
+            }
+        }
+        Some(Link {
+            p,
+            q,
+            g: pair.value * fraction,
+            k: pair.value * fraction * pair.variation + pair.value * uncertainty,
+            occludable,
+        })
+    }
+}
+
+fn patch(node: &Node) -> Patch {
+    let s = &node.surface;
+    // Sides are 3 or 4 by construction.
+    Patch::new(s.corner_points(), s.normal, node.polygon as usize)
+        .unwrap_or_else(|| unreachable!("hierarchy nodes are triangles or quads"))
+}
+
+fn max3(v: [f64; BANDS]) -> f64 {
+    v[0].max(v[1]).max(v[2])
+}
+
+/// Per node: the largest band of `values` (per element), maxed over each node's leaves.
+fn node_max(
+    nodes: &[Node],
+    children: &[u32],
+    n: usize,
+    values: &[[f64; BANDS]],
+    map: impl Fn(f64) -> f64,
+) -> Vec<f64> {
+    let mut out = vec![0.0; nodes.len()];
+    for (o, v) in out.iter_mut().zip(values).take(n) {
+        *o = map(max3(*v));
+    }
+    for u in n..nodes.len() {
+        let node = &nodes[u];
+        let mut m = 0.0f64;
+        for &c in &children[node.first as usize..(node.first + node.count) as usize] {
+            m = m.max(out[c as usize]);
+        }
+        out[u] = m;
+    }
+    out
+}
+
+/// The operator's receiver-ordered entries from the links (both directions of each).
+fn assemble(
+    n: usize,
+    nodes: &[Node],
+    children: &[u32],
+    links: &[Link],
+    accuracy: f64,
+) -> HierarchicalTransport {
+    let total = nodes.len();
+    let mut counts = vec![0u64; total + 1];
+    for l in links {
+        counts[l.p as usize + 1] += 1;
+        counts[l.q as usize + 1] += 1;
+    }
+    for k in 0..total {
+        counts[k + 1] += counts[k];
+    }
+    let offsets = counts;
+    let entries = offsets[total] as usize;
+    let mut fill: Vec<u64> = offsets[..total].to_vec();
+    let mut sources = vec![0u32; entries];
+    let mut coefficients = vec![0.0f64; entries];
+    for l in links {
+        let (p, q) = (l.p as usize, l.q as usize);
+        let k = fill[p] as usize;
+        sources[k] = l.q;
+        coefficients[k] = l.g / nodes[p].surface.area;
+        fill[p] += 1;
+        let k = fill[q] as usize;
+        sources[k] = l.p;
+        coefficients[k] = l.g / nodes[q].surface.area;
+        fill[q] += 1;
+    }
+    HierarchicalTransport {
+        n,
+        nodes: nodes.to_vec(),
+        children: children.to_vec(),
+        offsets,
+        sources,
+        coefficients,
+        accuracy,
+        stats: HierarchicalStats::default(),
+    }
+}
+
+/// Nodes, child lists and per-polygon roots.
+type Trees = (Vec<Node>, Vec<u32>, Vec<u32>);
+
+/// The trees: nodes (elements first, then interior nodes, each after its children), the
+/// child lists, and each polygon's root.
+fn build_trees(polygons: &[Polygon], mesh: &ElementMesh) -> Result<Trees, LinkError> {
+    let n = mesh.elements.len();
+    let mut nodes: Vec<Node> = (0..n)
+        .map(|i| Node {
+            surface: Surface::element(mesh, i),
+            polygon: mesh.elements[i].polygon,
+            first: 0,
+            count: 0,
+        })
+        .collect();
+    let mut children = Vec::new();
+    let mut roots = Vec::with_capacity(polygons.len());
+    for (k, (polygon, grid)) in polygons.iter().zip(&mesh.patches).enumerate() {
+        let count = grid.elements.len() as u32;
+        if count == 0 {
+            return Err(LinkError::Mesh(k));
+        }
+        let mut tree = Tree {
+            mesh,
+            nodes: &mut nodes,
+            children: &mut children,
+            polygon: k as u32,
+            normal: polygon.normal,
+            e0: grid.elements.start,
+            v0: grid.vertices.start,
+        };
+        let root = if polygon.vertices.len() == 4 {
+            // Row-major nu × nv grid: element k < nu of the first row starts at vertex k, the
+            // first element of the second row at vertex nu + 1.
+            let nu = (0..count)
+                .find(|&k| {
+                    mesh.elements[(grid.elements.start + k) as usize].corners[0]
+                        != grid.vertices.start + k
+                })
+                .unwrap_or(count);
+            let nv = count / nu;
+            let (lu, lv) = (
+                polygon.vertices[0].distance(polygon.vertices[1]),
+                polygon.vertices[0].distance(polygon.vertices[3]),
+            );
+            tree.quad(nu, [0, nu, 0, nv], lu / nu as f64, lv / nv as f64)
+        } else {
+            let side = (count as f64).sqrt().round() as u32;
+            tree.up(side, 0, 0, side)
+        };
+        roots.push(root);
+    }
+    Ok((nodes, children, roots))
+}
+
+/// Builds one polygon's tree.
+struct Tree<'a> {
+    mesh: &'a ElementMesh,
+    nodes: &'a mut Vec<Node>,
+    children: &'a mut Vec<u32>,
+    polygon: u32,
+    normal: DVec3,
+    e0: u32,
+    v0: u32,
+}
+
+impl Tree<'_> {
+    fn vertex(&self, k: u32) -> DVec3 {
+        self.mesh.vertices[(self.v0 + k) as usize]
+    }
+
+    /// An interior node over `kids` with these corners (area = the children's sum).
+    fn interior(&mut self, corners: &[DVec3], kids: &[u32]) -> u32 {
+        let area: f64 = kids
+            .iter()
+            .map(|&c| self.nodes[c as usize].surface.area)
+            .sum();
+        let mut surface = Surface::new(corners, self.normal).unwrap_or_else(|| {
+            // A sliver whose fan area rounds to 0: keep the children's area and centroid.
+            let c = self.nodes[kids[0] as usize].surface;
+            Surface { area, ..c }
+        });
+        surface.area = area;
+        let first = self.children.len() as u32;
+        self.children.extend_from_slice(kids);
+        self.nodes.push(Node {
+            surface,
+            polygon: self.polygon,
+            first,
+            count: kids.len() as u32,
+        });
+        (self.nodes.len() - 1) as u32
+    }
+
+    /// Elements `[i0, i1) × [j0, j1)` of an nu-column quad grid, halved along the longer side
+    /// (world lengths `du`, `dv` per column and row).
+    fn quad(&mut self, nu: u32, [i0, i1, j0, j1]: [u32; 4], du: f64, dv: f64) -> u32 {
+        if i1 - i0 == 1 && j1 - j0 == 1 {
+            return self.e0 + j0 * nu + i0;
+        }
+        let (a, b) = if (i1 - i0) as f64 * du >= (j1 - j0) as f64 * dv && i1 - i0 > 1 {
+            let m = (i0 + i1) / 2;
+            (
+                self.quad(nu, [i0, m, j0, j1], du, dv),
+                self.quad(nu, [m, i1, j0, j1], du, dv),
+            )
+        } else {
+            let m = (j0 + j1) / 2;
+            (
+                self.quad(nu, [i0, i1, j0, m], du, dv),
+                self.quad(nu, [i0, i1, m, j1], du, dv),
+            )
+        };
+        let id = |i: u32, j: u32| j * (nu + 1) + i;
+        let corners = [
+            self.vertex(id(i0, j0)),
+            self.vertex(id(i1, j0)),
+            self.vertex(id(i1, j1)),
+            self.vertex(id(i0, j1)),
+        ];
+        self.interior(&corners, &[a, b])
+    }
+
+    /// Vertex (i, k) of an n-split triangle grid (row k holds n − k + 1 vertices).
+    fn tri_vertex(&self, n: u32, i: u32, k: u32) -> DVec3 {
+        let row = k * (n + 1) - k * (k.saturating_sub(1)) / 2;
+        // Σ_{k' < k} (n − k' + 1) = k (n + 1) − k (k − 1) / 2.
+        self.vertex(row + i)
+    }
+
+    /// Element index of the upward (`down = false`) or downward triangle of cell (i, k).
+    fn tri_element(&self, n: u32, i: u32, k: u32, down: bool) -> u32 {
+        // Row k holds 2 (n − k) − 1 elements: Σ_{k' < k} = 2 n k − k².
+        self.e0 + 2 * n * k - k * k + 2 * i + u32::from(down)
+    }
+
+    /// The upward triangle of side m with corner cell (i0, k0).
+    fn up(&mut self, n: u32, i0: u32, k0: u32, m: u32) -> u32 {
+        if m == 1 {
+            return self.tri_element(n, i0, k0, false);
+        }
+        let kids = if m.is_multiple_of(2) {
+            let h = m / 2;
+            vec![
+                self.up(n, i0, k0, h),
+                self.up(n, i0 + h, k0, h),
+                self.up(n, i0, k0 + h, h),
+                self.down(n, i0, k0, h),
+            ]
+        } else {
+            let mut kids = Vec::with_capacity((m * m) as usize);
+            for r in 0..m {
+                let k = k0 + r;
+                for i in i0..i0 + (m - r) {
+                    kids.push(self.tri_element(n, i, k, false));
+                    if i + 1 < i0 + (m - r) {
+                        kids.push(self.tri_element(n, i, k, true));
+                    }
+                }
+            }
+            kids
+        };
+        let corners = [
+            self.tri_vertex(n, i0, k0),
+            self.tri_vertex(n, i0 + m, k0),
+            self.tri_vertex(n, i0, k0 + m),
+        ];
+        self.interior(&corners, &kids)
+    }
+
+    /// The downward triangle of side m with corners (i0 + m, k0), (i0 + m, k0 + m),
+    /// (i0, k0 + m) in vertex coordinates.
+    fn down(&mut self, n: u32, i0: u32, k0: u32, m: u32) -> u32 {
+        if m == 1 {
+            return self.tri_element(n, i0, k0, true);
+        }
+        let kids = if m.is_multiple_of(2) {
+            let h = m / 2;
+            vec![
+                self.down(n, i0 + h, k0, h),
+                self.down(n, i0, k0 + h, h),
+                self.down(n, i0 + h, k0 + h, h),
+                self.up(n, i0 + h, k0 + h, h),
+            ]
+        } else {
+            let mut kids = Vec::with_capacity((m * m) as usize);
+            for r in 0..m {
+                let k = k0 + r;
+                // r + 1 downward cells ending at column i0 + m − 1, r upward ones between.
+                for i in (i0 + m - 1 - r)..(i0 + m) {
+                    kids.push(self.tri_element(n, i, k, true));
+                    if i + 1 < i0 + m {
+                        kids.push(self.tri_element(n, i + 1, k, false));
+                    }
+                }
+            }
+            kids
+        };
+        let corners = [
+            self.tri_vertex(n, i0 + m, k0),
+            self.tri_vertex(n, i0 + m, k0 + m),
+            self.tri_vertex(n, i0, k0 + m),
+        ];
+        self.interior(&corners, &kids)
+    }
+}
