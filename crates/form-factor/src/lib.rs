@@ -387,6 +387,38 @@ pub fn surface_pair(
     })
 }
 
+/// What [`surface_screen`] finds out about a pair without integrating it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PairScreen {
+    pub kind: PairKind,
+    /// As [`SurfacePair::variation`].
+    pub variation: f64,
+    /// `A_a F_ab` (unoccluded) by the five-point rule behind the variation: the mean of the
+    /// point-to-surface kernel over the points of the smaller surface, times its area. Good to
+    /// about the variation (relative); for deciding, not for keeping.
+    pub rough: f64,
+}
+
+/// The cheap half of [`surface_pair`]: clipping, the kernel variation and a rough value, for
+/// deciding whether a pair is worth integrating at all (a hierarchy refines most pairs it
+/// looks at). `None` exactly when [`surface_pair`] is `None`.
+pub fn surface_screen(a: &Surface, b: &Surface) -> Option<PairScreen> {
+    let f = facing(a, b)?;
+    let (variation, mean_a, mean_b) = estimate::variation_and_means(&f.a, a.normal, &f.b, b.normal);
+    // A_a mean_x F_{dx→b} and A_b mean_y F_{dy→a} estimate the same G; the smaller surface's
+    // points sample its kernel better.
+    let rough = if a.area <= b.area {
+        a.area * mean_a
+    } else {
+        b.area * mean_b
+    };
+    Some(PairScreen {
+        kind: f.kind,
+        variation,
+        rough,
+    })
+}
+
 /// The pair in its own frame, each surface clipped to the part in front of the other's
 /// plane; `None` when they cannot exchange light (back-facing, coplanar, parallel same-facing).
 fn facing(sa: &Surface, sb: &Surface) -> Option<Facing> {

@@ -28,7 +28,7 @@
 //! estimators are accurate to their tolerance.
 //!
 //! **Passes.** B is not known before solving, so (as in HSA91) linking runs in passes: first
-//! with `B = e` (only links from emitters refine), then, after a coarse solve, again over the
+//! with `B = max(e, B̄₀)` (B̄₀ the furnace estimate `Σ A e / Σ A (1 − ρ)`), then, after a coarse solve, again over the
 //! kept links with the solved B, until no link is refined (or [`HierarchicalOptions::passes`]
 //! is reached). Links are never coarsened.
 //!
@@ -38,7 +38,9 @@
 //! bit-identical for any thread count; refinement is deterministic too (each candidate's
 //! shadow rays are seeded by its node pair, passes visit links in a fixed order).
 
-use form_factor::{surface_pair, ContourOptions, Estimator, Method, Occluders, PairKind, Surface};
+use form_factor::{
+    surface_pair, surface_screen, ContourOptions, Estimator, Method, Occluders, PairKind, Surface,
+};
 use glam::DVec3;
 use importer::Polygon;
 use mesher::ElementMesh;
@@ -65,9 +67,9 @@ pub struct HierarchicalOptions {
     pub max_links: u64,
 }
 
-/// Memory per kept link: the link itself while refining (48 bytes) and two operator entries
+/// Memory per kept link: the link itself while refining (56 bytes) and two operator entries
 /// (receiver index and coefficient, 12 bytes each, plus offsets).
-pub const BYTES_PER_LINK: u64 = 80;
+pub const BYTES_PER_LINK: u64 = 96;
 
 impl Default for HierarchicalOptions {
     fn default() -> Self {
@@ -89,7 +91,8 @@ pub struct HierarchicalStats {
     pub nodes: u64,
     /// Links kept.
     pub links: u64,
-    /// Node pairs whose form factor was estimated (kept or refined).
+    /// Node pairs screened (clipped, kernel variation and a rough value), kept or refined;
+    /// only kept links are integrated by the estimator (`by_method`).
     pub pairs_evaluated: u64,
     /// Node pairs facing each other whose occludability was tested.
     pub pairs_tested: u64,
@@ -142,6 +145,14 @@ struct Link {
     k: f64,
     /// Whether some polygon can come between p and q (children must test again).
     occludable: bool,
+    /// Unoccluded `A_p F_pq` and the kernel variation, for recomputing `g` and `k` once the
+    /// shadow rays are cast.
+    g0: f64,
+    variation: f64,
+    clipped: bool,
+    /// Whether `g` is the estimator's value with its visible fraction (only links that are
+    /// kept are integrated and get rays; until then `g0` is the screen's rough value).
+    final_value: bool,
 }
 
 /// The scene's light transport as links between nodes of per-polygon hierarchies.
@@ -215,6 +226,11 @@ impl HierarchicalTransport {
         } else {
             0.0
         };
+        // Non-emitters are assumed at the mean in the first pass, so that links between
+        // them refine before any rays are cast for links that would not be kept.
+        for v in &mut b_node {
+            *v = v.max(mean_b);
+        }
         let limit = options.max_links;
         let too_many = || LinkError::TooManyLinks {
             limit,
@@ -419,7 +435,7 @@ impl Linker<'_> {
     /// Keeps `link` if it meets the tolerance or cannot be split, else links its split.
     fn refine_or_keep(&self, link: Link, out: &mut Vec<Link>) {
         match self.split(&link) {
-            None => out.push(link),
+            None => out.push(self.finalize(link)),
             Some((parent, other, parent_is_p)) => {
                 let node = &self.nodes[parent as usize];
                 for &c in &self.children[node.first as usize..(node.first + node.count) as usize] {
@@ -430,6 +446,66 @@ impl Linker<'_> {
         }
     }
 
+    /// `link` with its value from the form-factor estimator and, if it is occludable, its
+    /// visible fraction from shadow rays (done once, when a link is first kept). Links whose
+    /// whole unoccluded contribution is within a quarter of the tolerance get at most 9 rays:
+    /// their visibility hardly matters.
+    fn finalize(&self, mut link: Link) -> Link {
+        if link.final_value {
+            return link;
+        }
+        let (np, nq) = (&self.nodes[link.p as usize], &self.nodes[link.q as usize]);
+        let options = self.options;
+        let c = self.counters;
+        if let Some(pair) = surface_pair(
+            &np.surface,
+            &nq.surface,
+            &options.contour,
+            options.estimator,
+        ) {
+            c.kernel_evaluations
+                .fetch_add(pair.evaluations, Ordering::Relaxed);
+            let method = match pair.method {
+                Method::Contour => 0,
+                Method::PointPolygon => 1,
+                Method::PointPoint => 2,
+            };
+            c.by_method[method].fetch_add(1, Ordering::Relaxed);
+            link.g0 = pair.value;
+        }
+        let mut fraction = 1.0;
+        if link.occludable {
+            let importance = (self.rho[link.p as usize] * self.b[link.q as usize]
+                / np.surface.area)
+                .max(self.rho[link.q as usize] * self.b[link.p as usize] / nq.surface.area)
+                * link.g0;
+            let samples = if importance < 0.25 * self.epsilon {
+                options.samples.min(9)
+            } else {
+                options.samples
+            };
+            let v = self.occluders.visibility(
+                &patch(np),
+                &patch(nq),
+                samples,
+                pair_seed(link.p as usize, link.q as usize),
+            );
+            c.rays_cast.fetch_add(u64::from(v.rays), Ordering::Relaxed);
+            fraction = v.fraction;
+        }
+        link.g = link.g0 * fraction;
+        // Occludable: a shadow boundary may cross the pair even where every ray of the
+        // sample arrived (a few rays per node miss small occluders).
+        let uncertainty = if link.occludable || link.clipped {
+            1.0
+        } else {
+            0.0
+        };
+        link.k = link.g * link.variation + link.g0 * uncertainty;
+        link.final_value = true;
+        link
+    }
+
     /// A kept link re-examined with new radiosities: `None` if it stays, else its refinement.
     fn refine_kept(&self, link: &Link) -> Option<Vec<Link>> {
         self.split(link)?;
@@ -438,13 +514,19 @@ impl Linker<'_> {
         Some(out)
     }
 
+    /// The BF error of a link between p and q with error factor `k`: the larger over its two
+    /// receivers of `ρ_r B_s k / A_r`.
+    fn error(&self, p: u32, q: u32, k: f64) -> f64 {
+        let (p, q) = (p as usize, q as usize);
+        (self.rho[p] * self.b[q] * k / self.nodes[p].surface.area)
+            .max(self.rho[q] * self.b[p] * k / self.nodes[q].surface.area)
+    }
+
     /// Which node to split (HSA91: the larger), with the other and whether the split one is
     /// `p`; `None` when the link meets the tolerance or both ends are elements.
     fn split(&self, link: &Link) -> Option<(u32, u32, bool)> {
-        let (p, q) = (link.p as usize, link.q as usize);
-        let (np, nq) = (&self.nodes[p], &self.nodes[q]);
-        let error = (self.rho[p] * self.b[q] * link.k / np.surface.area)
-            .max(self.rho[q] * self.b[p] * link.k / nq.surface.area);
+        let (np, nq) = (&self.nodes[link.p as usize], &self.nodes[link.q as usize]);
+        let error = self.error(link.p, link.q, link.k);
         if error <= self.epsilon || error.is_nan() {
             return None;
         }
@@ -465,54 +547,40 @@ impl Linker<'_> {
         if np.polygon == nq.polygon {
             return None;
         }
-        let options = self.options;
-        let pair = surface_pair(
-            &np.surface,
-            &nq.surface,
-            &options.contour,
-            options.estimator,
-        )?;
+        let screen = surface_screen(&np.surface, &nq.surface)?;
         let c = self.counters;
         c.pairs_evaluated.fetch_add(1, Ordering::Relaxed);
-        c.kernel_evaluations
-            .fetch_add(pair.evaluations, Ordering::Relaxed);
-        let method = match pair.method {
-            Method::Contour => 0,
-            Method::PointPolygon => 1,
-            Method::PointPoint => 2,
-        };
-        c.by_method[method].fetch_add(1, Ordering::Relaxed);
         // A node straddling the other's plane was clipped to its front part, but the link
         // pushes its light to all of the node: as uncertain as a shadow boundary.
-        let clipped = pair.kind == PairKind::Clipped;
-        let (mut fraction, mut uncertainty, mut occludable) =
-            (1.0, if clipped { 1.0 } else { 0.0 }, false);
-        if parent_occludable {
+        let clipped = screen.kind == PairKind::Clipped;
+        let mut occludable = false;
+        // A pair that would be kept even if it were fully uncertain gets rays without the
+        // occludability test: the test would only save its few rays, and far pairs (most of
+        // the polygon pairs of a large scene) are nearly always occludable.
+        let worst = self.error(p, q, screen.rough * (screen.variation + 1.0));
+        if parent_occludable && worst <= self.epsilon {
+            occludable = true;
+        } else if parent_occludable {
             c.pairs_tested.fetch_add(1, Ordering::Relaxed);
-            let a = patch(np);
-            let b = patch(nq);
-            if self.occluders.can_occlude(&a, &b) {
+            if self.occluders.can_occlude(&patch(np), &patch(nq)) {
                 occludable = true;
                 c.pairs_occludable.fetch_add(1, Ordering::Relaxed);
-                let v = self.occluders.visibility(
-                    &a,
-                    &b,
-                    options.samples,
-                    pair_seed(p as usize, q as usize),
-                );
-                c.rays_cast.fetch_add(u64::from(v.rays), Ordering::Relaxed);
-                fraction = v.fraction;
-                // Occludable: a shadow boundary may cross the pair even where every ray of
-                // the sample arrived (a few rays per node miss small occluders).
-                uncertainty = 1.0;
             }
         }
+        // Until rays say otherwise (they are cast only if the link is kept), an occludable
+        // link is fully visible and fully uncertain: the largest error it can have.
+        let uncertainty = if clipped || occludable { 1.0 } else { 0.0 };
+        let g = screen.rough;
         Some(Link {
             p,
             q,
-            g: pair.value * fraction,
-            k: pair.value * fraction * pair.variation + pair.value * uncertainty,
+            g,
+            k: g * screen.variation + g * uncertainty,
             occludable,
+            clipped,
+            g0: g,
+            variation: screen.variation,
+            final_value: false,
         })
     }
 }
