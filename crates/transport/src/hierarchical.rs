@@ -764,7 +764,9 @@ impl Tree<'_> {
         if i1 - i0 == 1 && j1 - j0 == 1 {
             return self.e0 + j0 * nu + i0;
         }
-        let (a, b) = if (i1 - i0) as f64 * du >= (j1 - j0) as f64 * dv && i1 - i0 > 1 {
+        let split_i =
+            j1 - j0 == 1 || (i1 - i0 > 1 && (i1 - i0) as f64 * du >= (j1 - j0) as f64 * dv);
+        let (a, b) = if split_i {
             let m = (i0 + i1) / 2;
             (
                 self.quad(nu, [i0, m, j0, j1], du, dv),

@@ -1,0 +1,178 @@
+//! The hierarchical operator on closed enclosures: the area-weighted row sum is exactly 1 (eq.
+//! 15 with reciprocity, the furnace identity), which only holds if every tree covers its
+//! polygon's elements exactly once (quad grids of odd and uneven sizes, triangle grids split
+//! into four and into elements) and the links partition every polygon pair; each row tends to
+//! 1 as the link tolerance shrinks; and the operator is reciprocal (`A_i (F x)_i` summed against y equals the same with x, y
+//! swapped).
+
+use bake_transport::{HierarchicalOptions, HierarchicalTransport};
+use form_factor::{ContourOptions, Estimator, Occluders};
+use glam::DVec3;
+use importer::{Origin, Polygon, Side};
+use mesher::Subdivision;
+use solver::Operator;
+
+fn polygon(mut vertices: Vec<DVec3>, inside: DVec3) -> Polygon {
+    let mut n = (vertices[1] - vertices[0])
+        .cross(vertices[2] - vertices[0])
+        .normalize();
+    if n.dot(inside - vertices[0]) < 0.0 {
+        vertices.reverse();
+        n = -n;
+    }
+    Polygon {
+        vertices,
+        normal: n,
+        material: 0,
+        origin: Origin {
+            node: 0,
+            mesh: 0,
+            primitive: 0,
+            face: 0,
+            side: Side::Front,
+        },
+    }
+}
+
+/// A box 1 × 2 × 3 (so grids are uneven) seen from inside.
+fn box_walls() -> Vec<Polygon> {
+    let c = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    let inside = c(0.5, 1.0, 1.5);
+    let (x, y, z) = (1.0, 2.0, 3.0);
+    vec![
+        polygon(
+            vec![c(0., 0., 0.), c(x, 0., 0.), c(x, y, 0.), c(0., y, 0.)],
+            inside,
+        ),
+        polygon(
+            vec![c(0., 0., z), c(x, 0., z), c(x, y, z), c(0., y, z)],
+            inside,
+        ),
+        polygon(
+            vec![c(0., 0., 0.), c(x, 0., 0.), c(x, 0., z), c(0., 0., z)],
+            inside,
+        ),
+        polygon(
+            vec![c(0., y, 0.), c(x, y, 0.), c(x, y, z), c(0., y, z)],
+            inside,
+        ),
+        polygon(
+            vec![c(0., 0., 0.), c(0., y, 0.), c(0., y, z), c(0., 0., z)],
+            inside,
+        ),
+        polygon(
+            vec![c(x, 0., 0.), c(x, y, 0.), c(x, y, z), c(x, 0., z)],
+            inside,
+        ),
+    ]
+}
+
+/// A regular tetrahedron seen from inside: four triangles.
+fn tetrahedron() -> Vec<Polygon> {
+    let v = [
+        DVec3::new(1., 1., 1.),
+        DVec3::new(1., -1., -1.),
+        DVec3::new(-1., 1., -1.),
+        DVec3::new(-1., -1., 1.),
+    ];
+    [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]
+        .iter()
+        .map(|f| polygon(f.iter().map(|&k| v[k]).collect(), DVec3::ZERO))
+        .collect()
+}
+
+fn build(
+    polygons: &[Polygon],
+    subdivision: Subdivision,
+    tolerance: f64,
+) -> (HierarchicalTransport, Vec<f64>) {
+    let mesh = mesher::mesh(polygons, subdivision).expect("mesh");
+    let occluders = Occluders::new(polygons).expect("occluders");
+    let n = mesh.elements.len();
+    let mut e = vec![[0.0; 3]; n];
+    // The first polygon emits, everything reflects half.
+    for (k, el) in mesh.elements.iter().enumerate() {
+        if el.polygon == 0 {
+            e[k] = [1.0; 3];
+        }
+    }
+    let rho = vec![[0.5; 3]; n];
+    let options = HierarchicalOptions {
+        link_tolerance: tolerance,
+        estimator: Estimator::Contour,
+        contour: ContourOptions::default(),
+        ..HierarchicalOptions::default()
+    };
+    let h = HierarchicalTransport::build(polygons, &mesh, &occluders, &rho, &e, &options, &|_| {})
+        .expect("build");
+    let areas = mesh.elements.iter().map(|el| el.area).collect();
+    (h, areas)
+}
+
+fn check_furnace_and_reciprocity(polygons: &[Polygon], subdivision: Subdivision) {
+    let mut previous = f64::INFINITY;
+    for tolerance in [1e-1, 1e-2, 1e-3] {
+        let (h, areas) = build(polygons, subdivision, tolerance);
+        let n = h.n();
+        let mut sums = vec![0.0; n];
+        h.apply(&vec![1.0; n], &mut sums);
+        // A leaf's row sum is 1 only up to the links' receiver error (a coarse link gives every
+        // element of its receiver the receiver's mean), but the area-weighted mean is exactly 1
+        // in a closed enclosure when the trees cover every element once and the links
+        // partition every polygon pair (Σ_i A_i (F 1)_i = Σ_i A_i by reciprocity, eq. 14).
+        let total: f64 = areas.iter().sum();
+        let mean = (0..n).map(|i| areas[i] * sums[i]).sum::<f64>() / total;
+        assert!(
+            (mean - 1.0).abs() < 1e-9,
+            "{subdivision:?} at {tolerance}: area-weighted row sum {mean}"
+        );
+        let worst = sums.iter().map(|s| (s - 1.0f64).abs()).fold(0.0, f64::max);
+        assert!(
+            worst < previous || worst < 1e-12,
+            "{subdivision:?}: worst |row sum − 1| {worst} at {tolerance} ≥ {previous}"
+        );
+        previous = worst;
+        let x: Vec<f64> = (0..n).map(|i| ((i * 7919) % 13) as f64).collect();
+        let y: Vec<f64> = (0..n).map(|i| ((i * 104729) % 17) as f64).collect();
+        let (mut fx, mut fy) = (vec![0.0; n], vec![0.0; n]);
+        h.apply(&x, &mut fx);
+        h.apply(&y, &mut fy);
+        let a: f64 = (0..n).map(|i| areas[i] * fx[i] * y[i]).sum();
+        let b: f64 = (0..n).map(|i| areas[i] * fy[i] * x[i]).sum();
+        assert!((a - b).abs() <= 1e-12 * a.abs(), "{a} vs {b}");
+        assert!(h.stats().links > 0);
+    }
+}
+
+#[test]
+fn quad_trees_of_uneven_grids_cover_every_element_once() {
+    for size in [0.3, 0.45, 1.0] {
+        check_furnace_and_reciprocity(&box_walls(), Subdivision::MaxSize(size));
+    }
+}
+
+#[test]
+fn triangle_trees_cover_every_element_once() {
+    // 4 = 2·2 (split into four twice), 6 = 2·3 (four, then elements), 5 (elements at once).
+    for n in [4, 5, 6] {
+        check_furnace_and_reciprocity(&tetrahedron(), Subdivision::Count(n));
+    }
+}
+
+#[test]
+fn apply_bands_gives_the_bits_of_three_applies() {
+    let (h, _) = build(&box_walls(), Subdivision::MaxSize(0.3), 1e-2);
+    let n = h.n();
+    let x: Vec<[f64; 3]> = (0..n).map(|i| [i as f64, 1.0, (i % 5) as f64]).collect();
+    let mut y = vec![[0.0; 3]; n];
+    h.apply_bands(&x, &mut y);
+    for c in 0..3 {
+        let xc: Vec<f64> = x.iter().map(|v| v[c]).collect();
+        let mut yc = vec![0.0; n];
+        h.apply(&xc, &mut yc);
+        assert!(yc
+            .iter()
+            .zip(&y)
+            .all(|(a, b)| a.to_bits() == b[c].to_bits()));
+    }
+}

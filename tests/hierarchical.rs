@@ -1,0 +1,193 @@
+//! The hierarchical transport against the dense one on the same mesh, and the invariants every
+//! bake keeps (energy balance, determinism across thread counts, no NaN, clean refusals).
+//!
+//! The sizes here are coarser than the acceptance sizes (Cornell at 27 mm, two rooms
+//! at 0.2 m) so the dense references stay quick in a test build; the `#[ignore]`d
+//! `*_at_acceptance_size` tests run those (`cargo test --release -- --ignored`).
+
+mod common;
+
+use bake_core::{Bake, Request, Settings, TransportKind};
+use common::{bake, fixture};
+use mesher::Subdivision;
+
+fn run(name: &str, size: f64, transport: TransportKind, link_tolerance: Option<f64>) -> Bake {
+    let scene = importer::load(&fixture(name)).expect("load the fixture");
+    let request = Request {
+        subdivision: Some(Subdivision::MaxSize(size)),
+        transport,
+        link_tolerance,
+        irradiance: true,
+        ..Request::default()
+    };
+    let settings = Settings::resolve(&request, &scene.polygons).expect("settings");
+    bake_core::run(&scene, &settings, &bake_core::Silent).expect("bake")
+}
+
+/// Area-weighted RMS of the difference relative to the dense solution, and the largest
+/// per-element difference relative to max(b_dense, the scene's mean b) (so that elements in
+/// full shadow, b ≈ 0, are compared with the scene's light level rather than with 0).
+fn differences(dense: &Bake, other: &Bake) -> (f64, f64) {
+    let elements = &dense.mesh.elements;
+    let area: f64 = elements.iter().map(|e| e.area).sum();
+    let mean = elements
+        .iter()
+        .zip(&dense.solution.b)
+        .map(|(e, b)| e.area * b.iter().sum::<f64>() / 3.0)
+        .sum::<f64>()
+        / area;
+    let (mut num, mut den, mut worst) = (0.0, 0.0, 0.0f64);
+    for ((e, d), h) in elements
+        .iter()
+        .zip(&dense.solution.b)
+        .zip(&other.solution.b)
+    {
+        for c in 0..3 {
+            num += e.area * (h[c] - d[c]).powi(2);
+            den += e.area * d[c].powi(2);
+            worst = worst.max((h[c] - d[c]).abs() / d[c].max(mean));
+        }
+    }
+    ((num / den).sqrt(), worst)
+}
+
+fn compare(name: &str, size: f64) {
+    let dense = run(name, size, TransportKind::Dense, None);
+    let hierarchical = run(name, size, TransportKind::Hierarchical, Some(1e-3));
+    assert_eq!(hierarchical.transport.kind, TransportKind::Hierarchical);
+    assert!(hierarchical.counts.links > 0);
+    let (rms, worst) = differences(&dense, &hierarchical);
+    println!(
+        "{name} at {size}: {} elements, {} links, rms {rms:.4}, worst {worst:.4}",
+        dense.mesh.elements.len(),
+        hierarchical.counts.links
+    );
+    assert!(rms <= 0.01, "{name}: rms difference {rms}");
+    assert!(worst <= 0.10, "{name}: worst element difference {worst}");
+    // Reciprocal links conserve energy like the dense matrix does.
+    for band in 0..3 {
+        assert!(
+            hierarchical.energy.imbalance[band] < 1e-5,
+            "{name}: energy imbalance {:?}",
+            hierarchical.energy.imbalance
+        );
+    }
+    assert!(hierarchical
+        .solution
+        .b
+        .iter()
+        .chain(hierarchical.irradiance.iter().flatten())
+        .all(|b| b.iter().all(|v| v.is_finite() && *v >= 0.0)));
+}
+
+#[test]
+fn hierarchical_matches_dense_on_the_cornell_box() {
+    compare("cornell.gltf", 60.0);
+}
+
+#[test]
+fn hierarchical_matches_dense_on_the_two_rooms() {
+    compare("two-rooms.gltf", 0.4);
+}
+
+#[test]
+#[ignore = "dense reference of 4 243 elements: about 45 s in a release build"]
+fn cornell_at_acceptance_size() {
+    compare("cornell.gltf", 27.0);
+}
+
+#[test]
+#[ignore = "dense reference of 3 656 elements: about 40 s in a release build"]
+fn two_rooms_at_acceptance_size() {
+    compare("two-rooms.gltf", 0.2);
+}
+
+/// Coarse links make the hierarchical answer less accurate, never unstable: a tighter link
+/// tolerance gets closer to the dense answer.
+#[test]
+fn tighter_link_tolerance_converges_to_dense() {
+    let dense = run("cornell.gltf", 60.0, TransportKind::Dense, None);
+    let mut previous = f64::INFINITY;
+    for t in [3e-2, 1e-2, 1e-3] {
+        let h = run("cornell.gltf", 60.0, TransportKind::Hierarchical, Some(t));
+        let (rms, _) = differences(&dense, &h);
+        assert!(rms < previous, "link tolerance {t}: rms {rms} ≥ {previous}");
+        previous = rms;
+    }
+}
+
+#[test]
+fn hierarchical_bakes_are_bit_identical_with_one_and_two_threads() {
+    let bake_with = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool")
+            .install(|| run("cornell.gltf", 60.0, TransportKind::Hierarchical, None))
+    };
+    let (one, two) = (bake_with(1), bake_with(2));
+    assert_eq!(one.counts, two.counts);
+    let bits = |b: &Bake| -> Vec<u64> {
+        b.solution
+            .b
+            .iter()
+            .flat_map(|v| v.iter().map(|x| x.to_bits()))
+            .collect()
+    };
+    assert_eq!(bits(&one), bits(&two));
+}
+
+#[test]
+fn auto_picks_the_transport_by_element_count_and_says_why() {
+    let small = run("cornell.gltf", 60.0, TransportKind::Auto, None);
+    assert_eq!(small.transport.kind, TransportKind::Dense);
+    assert!(small.transport.reason.contains("crossover"));
+    let n = small.mesh.elements.len();
+    assert!(n <= bake_core::DENSE_CROSSOVER, "{n}");
+    let large = run("cornell.gltf", 25.0, TransportKind::Auto, None);
+    assert!(large.mesh.elements.len() > bake_core::DENSE_CROSSOVER);
+    assert_eq!(large.transport.kind, TransportKind::Hierarchical);
+    assert!(large.transport.reason.contains("crossover"));
+}
+
+#[test]
+fn the_cli_reports_the_transport_and_refuses_direct_with_hierarchical() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("out.glb");
+    let report = dir.path().join("r.json");
+    let input = fixture("two-rooms.gltf");
+    bake([
+        input.as_os_str(),
+        out.as_os_str(),
+        "--transport".as_ref(),
+        "hierarchical".as_ref(),
+        "--max-element-size".as_ref(),
+        "0.5".as_ref(),
+        "--report".as_ref(),
+        report.as_os_str(),
+        "--quiet".as_ref(),
+    ])
+    .success();
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&report).expect("report")).expect("json");
+    assert_eq!(r["transport"]["kind"], "hierarchical");
+    assert_eq!(r["options"]["transport"], "hierarchical");
+    assert_eq!(r["options"]["solver"], "iterative");
+    assert!(r["counts"]["links"].as_u64().unwrap_or(0) > 0);
+    assert!(
+        r["counts"]["nodes"].as_u64().unwrap_or(0) > r["counts"]["elements"].as_u64().unwrap_or(0)
+    );
+    let refused = bake([
+        input.as_os_str(),
+        dir.path().join("x.glb").as_os_str(),
+        "--transport".as_ref(),
+        "hierarchical".as_ref(),
+        "--solver".as_ref(),
+        "direct".as_ref(),
+    ]);
+    assert_eq!(refused.code, Some(1), "{refused:?}");
+    assert!(refused
+        .stderr
+        .contains("--solver direct needs the dense transport"));
+    assert!(!dir.path().join("x.glb").exists());
+}
