@@ -125,7 +125,7 @@ impl Bake {
 }
 
 /// Scenes up to this many elements get the dense transport under `--transport auto`.
-pub const DENSE_CROSSOVER: usize = 3_000;
+pub const DENSE_CROSSOVER: usize = 2_000;
 
 /// Bakes `scene` with `settings`: mesh, visibility, transport, solve (and `H = F b` if asked).
 pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Result<Bake, BakeError> {

@@ -134,6 +134,9 @@ struct Node {
     count: u32,
 }
 
+/// Links whose whole unoccluded error contribution is below this × ε get one shadow ray.
+const FAINT: f64 = 1.0 / 16.0;
+
 /// A kept link between nodes p and q.
 #[derive(Clone, Copy, Debug)]
 struct Link {
@@ -448,8 +451,8 @@ impl Linker<'_> {
 
     /// `link` with its value from the form-factor estimator and, if it is occludable, its
     /// visible fraction from shadow rays (done once, when a link is first kept). Links whose
-    /// whole unoccluded contribution is within a quarter of the tolerance get at most 9 rays:
-    /// their visibility hardly matters.
+    /// whole unoccluded contribution is within a quarter of the tolerance get at most 9 rays,
+    /// within [`FAINT`] of it one: their visibility hardly matters.
     fn finalize(&self, mut link: Link) -> Link {
         if link.final_value {
             return link;
@@ -479,19 +482,33 @@ impl Linker<'_> {
                 / np.surface.area)
                 .max(self.rho[link.q as usize] * self.b[link.p as usize] / nq.surface.area)
                 * link.g0;
-            let samples = if importance < 0.25 * self.epsilon {
-                options.samples.min(9)
+            if importance < FAINT * self.epsilon {
+                // A faint link (most pairs of distant rooms): one ray between the centroids,
+                // lifted off both surfaces, decides all or nothing.
+                let lift = self.occluders.ray_offset();
+                let (a, b) = (np.surface, nq.surface);
+                let blocked = self.occluders.segment_blocked(
+                    a.centroid + a.normal * lift,
+                    b.centroid + b.normal * lift,
+                    [np.polygon as usize, nq.polygon as usize],
+                );
+                c.rays_cast.fetch_add(1, Ordering::Relaxed);
+                fraction = if blocked { 0.0 } else { 1.0 };
             } else {
-                options.samples
-            };
-            let v = self.occluders.visibility(
-                &patch(np),
-                &patch(nq),
-                samples,
-                pair_seed(link.p as usize, link.q as usize),
-            );
-            c.rays_cast.fetch_add(u64::from(v.rays), Ordering::Relaxed);
-            fraction = v.fraction;
+                let samples = if importance < 0.25 * self.epsilon {
+                    options.samples.min(9)
+                } else {
+                    options.samples
+                };
+                let v = self.occluders.visibility(
+                    &patch(np),
+                    &patch(nq),
+                    samples,
+                    pair_seed(link.p as usize, link.q as usize),
+                );
+                c.rays_cast.fetch_add(u64::from(v.rays), Ordering::Relaxed);
+                fraction = v.fraction;
+            }
         }
         link.g = link.g0 * fraction;
         // Occludable: a shadow boundary may cross the pair even where every ray of the
