@@ -180,7 +180,8 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
             stage("links", &mut lap);
             let s = h.stats();
             let counts = Counts {
-                pairs_evaluated: s.pairs_evaluated,
+                // Integrated node pairs (the kept links); screened pairs are in the stats.
+                pairs_evaluated: s.by_method.iter().sum(),
                 pairs_tested: s.pairs_tested,
                 pairs_occludable: s.pairs_occludable,
                 rays_cast: s.rays_cast,

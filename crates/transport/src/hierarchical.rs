@@ -251,26 +251,7 @@ impl HierarchicalTransport {
                 epsilon: options.link_tolerance * mean_b,
                 counters: &counters,
             };
-            let rows: Vec<Vec<Link>> = (0..roots.len())
-                .into_par_iter()
-                .map(|p| {
-                    let mut row = Vec::new();
-                    for q in p + 1..roots.len() {
-                        linker.link(roots[p], roots[q], true, &mut row);
-                    }
-                    progress(1);
-                    row
-                })
-                .collect();
-            let total: usize = rows.iter().map(Vec::len).sum();
-            if total as u64 > limit {
-                return Err(too_many());
-            }
-            let mut all = Vec::with_capacity(total);
-            for row in rows {
-                all.extend(row);
-            }
-            all
+            initial_links(&linker, &roots, progress, limit).ok_or_else(too_many)?
         };
         let mut passes = 1;
         let accuracy = options.estimator.row_sum_accuracy();
@@ -600,6 +581,37 @@ impl Linker<'_> {
             final_value: false,
         })
     }
+}
+
+/// The first pass's links, refined from every pair of polygon roots: O(P²) pairs, fine up to a
+/// few thousand polygons. The one step that clustering (part 2 of the walkthrough plan) replaces
+/// by links between clusters of polygons. `None` when more than `limit` links are kept.
+fn initial_links(
+    linker: &Linker,
+    roots: &[u32],
+    progress: &(dyn Fn(u64) + Sync),
+    limit: u64,
+) -> Option<Vec<Link>> {
+    let rows: Vec<Vec<Link>> = (0..roots.len())
+        .into_par_iter()
+        .map(|p| {
+            let mut row = Vec::new();
+            for q in p + 1..roots.len() {
+                linker.link(roots[p], roots[q], true, &mut row);
+            }
+            progress(1);
+            row
+        })
+        .collect();
+    let total: usize = rows.iter().map(Vec::len).sum();
+    if total as u64 > limit {
+        return None;
+    }
+    let mut all = Vec::with_capacity(total);
+    for row in rows {
+        all.extend(row);
+    }
+    Some(all)
 }
 
 fn patch(node: &Node) -> Patch {

@@ -176,3 +176,36 @@ fn apply_bands_gives_the_bits_of_three_applies() {
             .all(|(a, b)| a.to_bits() == b[c].to_bits()));
     }
 }
+
+#[test]
+fn too_many_links_is_a_clear_refusal() {
+    let polygons = box_walls();
+    let mesh = mesher::mesh(&polygons, Subdivision::MaxSize(0.3)).expect("mesh");
+    let occluders = Occluders::new(&polygons).expect("occluders");
+    let n = mesh.elements.len();
+    let e: Vec<[f64; 3]> = mesh
+        .elements
+        .iter()
+        .map(|el| if el.polygon == 0 { [1.0; 3] } else { [0.0; 3] })
+        .collect();
+    let options = HierarchicalOptions {
+        link_tolerance: 1e-3,
+        max_links: 10,
+        ..HierarchicalOptions::default()
+    };
+    let result = HierarchicalTransport::build(
+        &polygons,
+        &mesh,
+        &occluders,
+        &vec![[0.5; 3]; n],
+        &e,
+        &options,
+        &|_| {},
+    );
+    let message = match result {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("10 links cannot hold a refined box"),
+    };
+    assert!(message.contains("more than 10 links"), "{message}");
+    assert!(message.contains("--link-tolerance"), "{message}");
+}
