@@ -448,14 +448,15 @@ pub(crate) fn point_polygon(
 }
 
 /// `(max − min) / mean` of the point-to-polygon kernel over both sides of a facing pair (see
-/// [`crate::SurfacePair::variation`]): `F_{dx→b}` at five points of `a` (the centroid of its
-/// vertices and the midpoints from there towards each vertex, never on an edge, where the
-/// kernel of a touching pair is singular) and `F_{dy→a}` at five points of `b`; the larger.
+/// [`crate::SurfacePair::variation`]): `F_{dx→b}` at points of `a` (the centroid of its
+/// vertices, the midpoints from there towards each vertex, and points 95 % of the way to each
+/// vertex, where the kernel of a pair sharing an edge peaks) and `F_{dy→a}` at the same points of `b`; the
+/// larger.
 pub(crate) fn variation(a: &Poly, na: DVec3, b: &Poly, nb: DVec3) -> f64 {
     variation_and_means(a, na, b, nb).0
 }
 
-/// [`variation`] and the mean kernel over each side's five points (`F_{dx→b}` over a,
+/// [`variation`] and the mean kernel over each side's points (`F_{dx→b}` over a,
 /// `F_{dy→a}` over b).
 pub(crate) fn variation_and_means(a: &Poly, na: DVec3, b: &Poly, nb: DVec3) -> (f64, f64, f64) {
     let (va, ma) = side_variation(a, na, b);
@@ -463,11 +464,19 @@ pub(crate) fn variation_and_means(a: &Poly, na: DVec3, b: &Poly, nb: DVec3) -> (
     (va.max(vb), ma, mb)
 }
 
+/// How far towards each corner the outer sample points of [`side_variation`] lie: near the
+/// corner, where the kernel of a pair sharing an edge peaks, but off the edge, where an edge
+/// term of the closed form has no direction (x on the other polygon's edge line).
+const CORNER_INSET: f64 = 0.95;
+
 fn side_variation(from: &Poly, n: DVec3, to: &Poly) -> (f64, f64) {
     let v = from.vertices();
     let centre = v.iter().copied().sum::<DVec3>() / v.len() as f64;
     let (mut lo, mut hi, mut sum) = (f64::INFINITY, 0.0f64, 0.0);
-    let points = std::iter::once(centre).chain(v.iter().map(|&c| (c + centre) * 0.5));
+    // Near the corners too: next to a shared edge the kernel peaks where the midpoints miss it.
+    let points = std::iter::once(centre)
+        .chain(v.iter().map(|&c| (c + centre) * 0.5))
+        .chain(v.iter().map(|&c| centre + (c - centre) * CORNER_INSET));
     let mut count = 0.0;
     for x in points {
         let f = rough_point_to_polygon(x, n, to.vertices());

@@ -358,8 +358,8 @@ pub struct SurfacePair {
     pub evaluations: u64,
     pub method: Method,
     /// How much the point-to-surface kernel varies over the pair, relative to its mean: the
-    /// larger over the two sides of `(max − min) / mean` of `F_{dx→b}` at five points of `a`
-    /// (its centroid and the midpoints towards its corners) and of `F_{dy→a}` at five points of
+    /// larger over the two sides of `(max − min) / mean` of `F_{dx→b}` at points of `a`
+    /// (its centroid, the midpoints towards its corners, its corners) and of `F_{dy→a}` at those of
     /// `b`. 0 when the kernel is constant over both (a distant pair), about 1 or more when one
     /// side sees the other very differently from place to place (a corner).
     pub variation: f64,
@@ -393,7 +393,7 @@ pub struct PairScreen {
     pub kind: PairKind,
     /// As [`SurfacePair::variation`].
     pub variation: f64,
-    /// `A_a F_ab` (unoccluded) by the five-point rule behind the variation: the mean of the
+    /// `A_a F_ab` (unoccluded) by the point rule behind the variation: the mean of the
     /// point-to-surface kernel over the points of the smaller surface, times its area. Good to
     /// about the variation (relative); for deciding, not for keeping.
     pub rough: f64,

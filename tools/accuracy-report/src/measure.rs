@@ -564,6 +564,59 @@ pub fn scanline_errors(values: &[[f64; 3]], reference: &[[f64; 3]]) -> Errors {
 mod tests {
     use super::*;
 
+    /// The cube at `--subdiv 28`, dense and hierarchical (each link tolerance), against the
+    /// continuous solution (the exact closed-form solve at 48 × 48 per wall, averaged over each
+    /// element). Prints the errors and times; asserts only that the hierarchical error falls as
+    /// the link tolerance does (speed is a benchmark, not a test).
+    #[test]
+    #[ignore = "a 13 824-element closed-form reference: minutes in a release build"]
+    fn cube_28_hierarchical_and_dense_against_the_continuous_solution() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/cube.gltf");
+        let cube = Scene::load("cube", &path).expect("cube");
+        let ref_mesh = mesher::mesh(&cube.polygons, Subdivision::Count(48)).expect("mesh");
+        let ref_b = closed_form_solution(&cube, &ref_mesh).expect("reference");
+        let reference = Field::new(&ref_mesh, &ref_b);
+        let bake = |transport, link_tolerance| {
+            let request = bake_core::Request {
+                subdivision: Some(Subdivision::Count(28)),
+                transport,
+                link_tolerance,
+                ..bake_core::Request::default()
+            };
+            let settings =
+                bake_core::Settings::resolve(&request, &cube.polygons).expect("settings");
+            let start = Instant::now();
+            let b = bake_core::run(&cube.source, &settings, &bake_core::Silent).expect("bake");
+            (b, start.elapsed().as_secs_f64())
+        };
+        let (dense, dense_s) = bake(bake_core::TransportKind::Dense, None);
+        let dense_error = element_errors(
+            &Field::new(&dense.mesh, &dense.solution.b),
+            &reference,
+            &cube,
+        );
+        println!(
+            "dense: {dense_s:.2} s, rms {:.5}, max {:.5}",
+            dense_error.rms, dense_error.max
+        );
+        let mut previous = f64::INFINITY;
+        for t in [1e-2, 1e-3, 3e-4] {
+            let (h, s) = bake(bake_core::TransportKind::Hierarchical, Some(t));
+            let e = element_errors(&Field::new(&h.mesh, &h.solution.b), &reference, &cube);
+            println!(
+                "hierarchical {t}: {s:.2} s ({:.1}x faster), {} links, rms {:.5} ({:.2}x dense), max {:.5}",
+                dense_s / s,
+                h.counts.links,
+                e.rms,
+                e.rms / dense_error.rms,
+                e.max
+            );
+            assert!(e.rms < previous);
+            previous = e.rms;
+        }
+    }
+
     #[test]
     fn bilinear_weights_reproduce_the_point_and_flag_outside() {
         let c = [
