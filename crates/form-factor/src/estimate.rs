@@ -448,16 +448,11 @@ pub(crate) fn point_polygon(
 }
 
 /// `(max − min) / mean` of the point-to-polygon kernel over both sides of a facing pair (see
-/// [`crate::SurfacePair::variation`]): `F_{dx→b}` at points of `a` (the centroid of its
+/// [`crate::PairScreen::variation`]): `F_{dx→b}` at points of `a` (the centroid of its
 /// vertices, the midpoints from there towards each vertex, and points 95 % of the way to each
 /// vertex, where the kernel of a pair sharing an edge peaks) and `F_{dy→a}` at the same points of `b`; the
 /// larger.
-pub(crate) fn variation(a: &Poly, na: DVec3, b: &Poly, nb: DVec3) -> f64 {
-    variation_and_means(a, na, b, nb).0
-}
-
-/// [`variation`] and the mean kernel over each side's points (`F_{dx→b}` over a,
-/// `F_{dy→a}` over b).
+/// Also returns the mean kernel over each side's points (`F_{dx→b}` over a, `F_{dy→a}` over b).
 pub(crate) fn variation_and_means(a: &Poly, na: DVec3, b: &Poly, nb: DVec3) -> (f64, f64, f64) {
     let (va, ma) = side_variation(a, na, b);
     let (vb, mb) = side_variation(b, nb, a);

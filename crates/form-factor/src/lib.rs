@@ -357,16 +357,9 @@ pub struct SurfacePair {
     pub kind: PairKind,
     pub evaluations: u64,
     pub method: Method,
-    /// How much the point-to-surface kernel varies over the pair, relative to its mean: the
-    /// larger over the two sides of `(max − min) / mean` of `F_{dx→b}` at points of `a`
-    /// (its centroid, the midpoints towards its corners, its corners) and of `F_{dy→a}` at those of
-    /// `b`. 0 when the kernel is constant over both (a distant pair), about 1 or more when one
-    /// side sees the other very differently from place to place (a corner).
-    pub variation: f64,
 }
 
-/// `A_a F_ab` of two surfaces by `estimator` (no occlusion), with the kernel's variation over
-/// the pair; `None` when they cannot exchange light (parallel and facing the same way, or one
+/// `A_a F_ab` of two surfaces by `estimator` (no occlusion); `None` when they cannot exchange light (parallel and facing the same way, or one
 /// wholly behind or in the other's plane). Straddling surfaces are clipped to their front
 /// parts, as for elements. Symmetric up to rounding: `surface_pair(b, a)` gives the same value.
 pub fn surface_pair(
@@ -377,13 +370,11 @@ pub fn surface_pair(
 ) -> Option<SurfacePair> {
     let f = facing(a, b)?;
     let (value, evaluations, method) = estimate_pair(&f, [a.normal, b.normal], options, estimator);
-    let variation = estimate::variation(&f.a, a.normal, &f.b, b.normal);
     Some(SurfacePair {
         value,
         kind: f.kind,
         evaluations,
         method,
-        variation,
     })
 }
 
@@ -391,7 +382,12 @@ pub fn surface_pair(
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PairScreen {
     pub kind: PairKind,
-    /// As [`SurfacePair::variation`].
+    /// How much the point-to-surface kernel varies over the pair, relative to its mean: the
+    /// larger over the two sides of `(max − min) / mean` of `F_{dx→b}` at points of `a` (its
+    /// centroid, the midpoints towards its corners, points 95 % of the way to them) and of
+    /// `F_{dy→a}` at those of `b`. 0 when the kernel is constant over both (a distant pair),
+    /// about 1 or more when one side sees the other very differently from place to place (a
+    /// corner).
     pub variation: f64,
     /// `A_a F_ab` (unoccluded) by the point rule behind the variation: the mean of the
     /// point-to-surface kernel over the points of the smaller surface, times its area. Good to

@@ -19,7 +19,7 @@
 //! ```
 //!
 //! with `variation` the spread of the point-to-polygon kernel over the two nodes relative to
-//! its mean (`form_factor::SurfacePair::variation`: 0 for a distant pair, ~1 at a corner), G₀
+//! its mean (`form_factor::PairScreen::variation`: 0 for a distant pair, ~1 at a corner), G₀
 //! the unoccluded value and `uncertainty` 1 when some polygon can come between the nodes (a
 //! shadow boundary may cross the pair, whatever its few shadow rays saw) or when a node straddles the other's plane (only its front
 //! part receives light, but a link spreads it over all of the node), 0 otherwise. Otherwise the larger node of
@@ -164,13 +164,27 @@ pub struct HierarchicalTransport {
     n: usize,
     nodes: Vec<Node>,
     children: Vec<u32>,
-    /// Operator entries by receiver node: `sources[offsets[r]..offsets[r + 1]]` with the
-    /// coefficients `F_rs` in `coefficients`.
+    entries: Entries,
+    accuracy: f64,
+    stats: HierarchicalStats,
+}
+
+/// Operator entries by receiver node: `sources[offsets[r]..offsets[r + 1]]` with the
+/// coefficients `F_rs` in `coefficients`.
+struct Entries {
     offsets: Vec<u64>,
     sources: Vec<u32>,
     coefficients: Vec<f64>,
+}
+
+/// The operator over borrowed trees and entries: the final transport and the coarse solves
+/// between linking passes share it.
+struct View<'a> {
+    n: usize,
+    nodes: &'a [Node],
+    children: &'a [u32],
+    entries: &'a Entries,
     accuracy: f64,
-    stats: HierarchicalStats,
 }
 
 /// Work counters summed over threads.
@@ -214,11 +228,11 @@ impl HierarchicalTransport {
         let n = mesh.elements.len();
         let (nodes, children, roots) = build_trees(polygons, mesh)?;
         let counters = Counters::default();
-        let node_rho = node_max(&nodes, &children, n, rho, |x| x);
+        let node_rho = node_max(&nodes, &children, n, rho);
 
-        // Pass 1: B = e, and B̄ from the furnace estimate Σ A e / Σ A (1 − ρ) (a closed grey
-        // scene's mean radiosity).
-        let mut b_node = node_max(&nodes, &children, n, e, |x| x);
+        // Pass 1: B̄ from the furnace estimate Σ A e / Σ A (1 − ρ) (a closed grey scene's mean
+        // radiosity), and B = max(e, B̄) (below).
+        let mut b_node = node_max(&nodes, &children, n, e);
         let (mut emitted, mut absorbing) = (0.0, 0.0);
         for (k, el) in mesh.elements.iter().enumerate() {
             emitted += el.area * max3(e[k]);
@@ -240,53 +254,55 @@ impl HierarchicalTransport {
             gib: limit as f64 * BYTES_PER_LINK as f64 / (1u64 << 30) as f64,
             tolerance: options.link_tolerance,
         };
-        let mut links: Vec<Link> = {
-            let linker = Linker {
-                nodes: &nodes,
-                children: &children,
-                occluders,
-                options,
-                rho: &node_rho,
-                b: &b_node,
-                epsilon: options.link_tolerance * mean_b,
-                counters: &counters,
-            };
-            initial_links(&linker, &roots, progress, limit).ok_or_else(too_many)?
+        // Every pass links with the same trees and counters, its own B and ε.
+        let base = Linker {
+            nodes: &nodes,
+            children: &children,
+            occluders,
+            options,
+            rho: &node_rho,
+            b: &[],
+            epsilon: 0.0,
+            counters: &counters,
         };
+        let linker = Linker {
+            b: &b_node,
+            epsilon: options.link_tolerance * mean_b,
+            ..base
+        };
+        let mut links = initial_links(&linker, &roots, progress, limit).ok_or_else(too_many)?;
+        let total_area: f64 = mesh.elements.iter().map(|el| el.area).sum();
         let mut passes = 1;
         let accuracy = options.estimator.row_sum_accuracy();
         while passes < options.passes {
             // A coarse solve with the current links, then re-examine them with its B.
-            let op = assemble(n, &nodes, &children, &links, accuracy);
+            let entries = assemble(&nodes, &links);
+            let op = View {
+                n,
+                nodes: &nodes,
+                children: &children,
+                entries: &entries,
+                accuracy,
+            };
             let coarse = IterativeOptions {
                 tolerance: 1e-3,
                 max_iterations: 500,
                 ..IterativeOptions::default()
             };
             let solution = solver::solve_iterative(&op, rho, e, &coarse)?;
-            b_node = node_max(&nodes, &children, n, &solution.b, |x| x);
+            drop(entries);
+            b_node = node_max(&nodes, &children, n, &solution.b);
             let mean = mesh
                 .elements
                 .iter()
                 .zip(&solution.b)
                 .map(|(el, b)| el.area * max3(*b))
                 .sum::<f64>()
-                / mesh
-                    .elements
-                    .iter()
-                    .map(|el| el.area)
-                    .sum::<f64>()
-                    .max(f64::MIN_POSITIVE);
-            drop(op);
+                / total_area.max(f64::MIN_POSITIVE);
             let linker = Linker {
-                nodes: &nodes,
-                children: &children,
-                occluders,
-                options,
-                rho: &node_rho,
                 b: &b_node,
                 epsilon: options.link_tolerance * mean,
-                counters: &counters,
+                ..base
             };
             let refined: Vec<Option<Vec<Link>>> = links
                 .par_iter()
@@ -309,8 +325,7 @@ impl HierarchicalTransport {
             }
             links = next;
         }
-        let mut transport = assemble(n, &nodes, &children, &links, accuracy);
-        transport.stats = HierarchicalStats {
+        let stats = HierarchicalStats {
             nodes: nodes.len() as u64,
             links: links.len() as u64,
             pairs_evaluated: counters.pairs_evaluated.load(Ordering::Relaxed),
@@ -321,16 +336,34 @@ impl HierarchicalTransport {
             by_method: [0, 1, 2].map(|k| counters.by_method[k].load(Ordering::Relaxed)),
             passes,
         };
-        transport.nodes = nodes;
-        transport.children = children;
-        Ok(transport)
+        let entries = assemble(&nodes, &links);
+        Ok(HierarchicalTransport {
+            n,
+            nodes,
+            children,
+            entries,
+            accuracy,
+            stats,
+        })
+    }
+
+    fn view(&self) -> View<'_> {
+        View {
+            n: self.n,
+            nodes: &self.nodes,
+            children: &self.children,
+            entries: &self.entries,
+            accuracy: self.accuracy,
+        }
     }
 
     /// What building it did.
     pub fn stats(&self) -> HierarchicalStats {
         self.stats
     }
+}
 
+impl View<'_> {
     /// `y = F x` for `B` bands at once (B = 1 or 3), the same bits per band either way.
     fn apply_generic<const B: usize>(&self, x: &[[f64; B]], y: &mut [[f64; B]]) {
         let total = self.nodes.len();
@@ -356,9 +389,15 @@ impl HierarchicalTransport {
         g.par_chunks_mut(1024).enumerate().for_each(|(chunk, out)| {
             for (k, gr) in out.iter_mut().enumerate() {
                 let r = chunk * 1024 + k;
-                let (lo, hi) = (self.offsets[r] as usize, self.offsets[r + 1] as usize);
+                let (lo, hi) = (
+                    self.entries.offsets[r] as usize,
+                    self.entries.offsets[r + 1] as usize,
+                );
                 let mut sum = [0.0; B];
-                for (&s, &f) in self.sources[lo..hi].iter().zip(&self.coefficients[lo..hi]) {
+                for (&s, &f) in self.entries.sources[lo..hi]
+                    .iter()
+                    .zip(&self.entries.coefficients[lo..hi])
+                {
                     for band in 0..B {
                         sum[band] += f * xn[s as usize][band];
                     }
@@ -380,7 +419,7 @@ impl HierarchicalTransport {
     }
 }
 
-impl Operator for HierarchicalTransport {
+impl Operator for View<'_> {
     fn n(&self) -> usize {
         self.n
     }
@@ -396,6 +435,24 @@ impl Operator for HierarchicalTransport {
 
     fn apply_bands(&self, x: &[[f64; BANDS]], y: &mut [[f64; BANDS]]) {
         self.apply_generic(x, y);
+    }
+
+    fn accuracy(&self) -> f64 {
+        self.accuracy
+    }
+}
+
+impl Operator for HierarchicalTransport {
+    fn n(&self) -> usize {
+        self.n
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        self.view().apply(x, y);
+    }
+
+    fn apply_bands(&self, x: &[[f64; BANDS]], y: &mut [[f64; BANDS]]) {
+        self.view().apply_bands(x, y);
     }
 
     fn accuracy(&self) -> f64 {
@@ -420,13 +477,21 @@ impl Linker<'_> {
     fn refine_or_keep(&self, link: Link, out: &mut Vec<Link>) {
         match self.split(&link) {
             None => out.push(self.finalize(link)),
-            Some((parent, other, parent_is_p)) => {
-                let node = &self.nodes[parent as usize];
-                for &c in &self.children[node.first as usize..(node.first + node.count) as usize] {
-                    let (a, b) = if parent_is_p { (c, other) } else { (other, c) };
-                    self.link(a, b, link.occludable, out);
-                }
-            }
+            Some(split) => self.link_split(&link, split, out),
+        }
+    }
+
+    /// Links the children of the split node with the other node of `link`.
+    fn link_split(
+        &self,
+        link: &Link,
+        (parent, other, parent_is_p): (u32, u32, bool),
+        out: &mut Vec<Link>,
+    ) {
+        let node = &self.nodes[parent as usize];
+        for &c in &self.children[node.first as usize..(node.first + node.count) as usize] {
+            let (a, b) = if parent_is_p { (c, other) } else { (other, c) };
+            self.link(a, b, link.occludable, out);
         }
     }
 
@@ -506,9 +571,9 @@ impl Linker<'_> {
 
     /// A kept link re-examined with new radiosities: `None` if it stays, else its refinement.
     fn refine_kept(&self, link: &Link) -> Option<Vec<Link>> {
-        self.split(link)?;
+        let split = self.split(link)?;
         let mut out = Vec::new();
-        self.refine_or_keep(*link, &mut out);
+        self.link_split(link, split, &mut out);
         Some(out)
     }
 
@@ -626,16 +691,10 @@ fn max3(v: [f64; BANDS]) -> f64 {
 }
 
 /// Per node: the largest band of `values` (per element), maxed over each node's leaves.
-fn node_max(
-    nodes: &[Node],
-    children: &[u32],
-    n: usize,
-    values: &[[f64; BANDS]],
-    map: impl Fn(f64) -> f64,
-) -> Vec<f64> {
+fn node_max(nodes: &[Node], children: &[u32], n: usize, values: &[[f64; BANDS]]) -> Vec<f64> {
     let mut out = vec![0.0; nodes.len()];
     for (o, v) in out.iter_mut().zip(values).take(n) {
-        *o = map(max3(*v));
+        *o = max3(*v);
     }
     for u in n..nodes.len() {
         let node = &nodes[u];
@@ -649,13 +708,7 @@ fn node_max(
 }
 
 /// The operator's receiver-ordered entries from the links (both directions of each).
-fn assemble(
-    n: usize,
-    nodes: &[Node],
-    children: &[u32],
-    links: &[Link],
-    accuracy: f64,
-) -> HierarchicalTransport {
+fn assemble(nodes: &[Node], links: &[Link]) -> Entries {
     let total = nodes.len();
     let mut counts = vec![0u64; total + 1];
     for l in links {
@@ -681,15 +734,10 @@ fn assemble(
         coefficients[k] = l.g / nodes[q].surface.area;
         fill[q] += 1;
     }
-    HierarchicalTransport {
-        n,
-        nodes: nodes.to_vec(),
-        children: children.to_vec(),
+    Entries {
         offsets,
         sources,
         coefficients,
-        accuracy,
-        stats: HierarchicalStats::default(),
     }
 }
 

@@ -86,13 +86,18 @@ impl Tree {
         })
     }
 
+    /// The box lo–hi (world units) in the tree's frame, padded.
+    fn query_box(&self, lo: DVec3, hi: DVec3) -> Aabb {
+        Aabb::new(
+            ((lo - self.centre) / self.scale).as_vec3a() - PAD,
+            ((hi - self.centre) / self.scale).as_vec3a() + PAD,
+        )
+    }
+
     /// Whether `pred(piece)` holds for some piece whose padded box overlaps the box lo–hi (world
     /// units). Stops at the first (the answer does not depend on the traversal order).
     pub fn any_in_box(&self, lo: DVec3, hi: DVec3, mut pred: impl FnMut(usize) -> bool) -> bool {
-        let query = Aabb::new(
-            ((lo - self.centre) / self.scale).as_vec3a() - PAD,
-            ((hi - self.centre) / self.scale).as_vec3a() + PAD,
-        );
+        let query = self.query_box(lo, hi);
         let bvh = &self.bvh;
         let mut state = bvh.new_traversal(Vec3A::ONE);
         let mut node;
@@ -119,10 +124,7 @@ impl Tree {
 
     /// Calls `f(piece)` for every piece whose padded box overlaps the box lo–hi (world units).
     pub fn for_each_in_box(&self, lo: DVec3, hi: DVec3, mut f: impl FnMut(usize)) {
-        let query = Aabb::new(
-            ((lo - self.centre) / self.scale).as_vec3a() - PAD,
-            ((hi - self.centre) / self.scale).as_vec3a() + PAD,
-        );
+        let query = self.query_box(lo, hi);
         let bvh = &self.bvh;
         let mut state = bvh.new_traversal(Vec3A::ONE);
         let mut node;
