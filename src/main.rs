@@ -83,15 +83,31 @@ pub struct Cli {
     /// (Figure 6).
     #[arg(long, value_enum, default_value_t = Shading::Smooth)]
     pub shading: Shading,
-    /// Multiply radiosity by this before clamping to [0, 1] for COLOR_0 (the unclamped value
-    /// is kept in the _RADIOSITY attribute and the report).
+    /// Multiply radiosity by X before clamping to [0, 1] for COLOR_0 (the unclamped value
+    /// is kept in the _RADIOSITY attribute and the report). `auto`: the exposure that maps the
+    /// 99th percentile, by area, of the elements' brightest band to 0.8 (punctual lights give
+    /// b in the hundreds or thousands of nits); the summary line and the report say which
+    /// exposure was used.
     #[arg(
         long,
-        value_name = "X",
-        default_value_t = 1.0,
-        allow_negative_numbers = true
+        value_name = "X|auto",
+        default_value = "1",
+        allow_negative_numbers = true,
+        value_parser = parse_exposure
     )]
-    pub exposure: f64,
+    pub exposure: Exposure,
+
+    /// Punctual lights (KHR_lights_punctual point and spot lights): shadow rays per element
+    /// that some polygon may shadow from the light (rounded to a square of strata, 1…1024).
+    /// Elements nothing can shadow get the exact closed form and no ray; directional lights'
+    /// shadows are clipped exactly and cast none. [default: from --quality: 4, 16, 64]
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub light_samples: Option<u32>,
+    /// Lightmap bake: keep the input's punctual lights on their nodes. Their light is already
+    /// in the lightmap, so a lit viewer shows it twice; for engines that use them for specular
+    /// highlights only.
+    #[arg(long)]
+    pub keep_lights: bool,
 
     /// How to compute each element pair's form factor. `contour`: the contour integral (eq. 13),
     /// exact to ~1e-15 with the default options. `point-polygon`: the closed form from
@@ -234,6 +250,7 @@ impl Cli {
                 TransportArg::Hierarchical => TransportKind::Hierarchical,
             },
             link_tolerance: self.link_tolerance,
+            light_samples: self.light_samples,
             irradiance: self.target != Target::Vertex,
         }
     }
@@ -278,6 +295,22 @@ fn parse_tolerance(text: &str) -> Result<f64, String> {
         Ok(t) => Err(format!("must be a number in (0, 1), got {t}")),
         Err(e) => Err(e.to_string()),
     }
+}
+
+/// `--exposure`: `auto`, or a number (checked to be finite and ≥ 0 before the bake).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Exposure {
+    Auto,
+    Value(f64),
+}
+
+fn parse_exposure(text: &str) -> Result<Exposure, String> {
+    if text.eq_ignore_ascii_case("auto") {
+        return Ok(Exposure::Auto);
+    }
+    text.parse::<f64>()
+        .map(Exposure::Value)
+        .map_err(|e| format!("{e} (expected a number or `auto`)"))
 }
 
 /// `--link-tolerance`: a finite number > 0.

@@ -1,10 +1,10 @@
 //! Wires the stages together, times them, reports progress, and maps failures to exit codes.
 
-use crate::{Cli, Shading, Target};
+use crate::{Cli, Exposure, Shading, Target};
 use anyhow::{anyhow, Context};
 use bake_core::Solve;
 use exporter::report::{
-    self, Effects, EnergyInfo, Report, SolverInfo, SolverMethod, TransportInfo,
+    self, Effects, EnergyInfo, LightEntry, Report, SolverInfo, SolverMethod, TransportInfo,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
@@ -34,11 +34,12 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             .build_global()
             .map_err(|e| internal(anyhow!("cannot start {threads} worker threads: {e}")))?;
     }
-    if !(cli.exposure.is_finite() && cli.exposure >= 0.0) {
-        return Err(bad_input(anyhow!(
-            "--exposure must be a finite number ≥ 0, got {}",
-            cli.exposure
-        )));
+    if let Exposure::Value(x) = cli.exposure {
+        if !(x.is_finite() && x >= 0.0) {
+            return Err(bad_input(anyhow!(
+                "--exposure must be a finite number ≥ 0 or `auto`, got {x}"
+            )));
+        }
     }
     if let Some(l) = cli.lightmap_texel {
         if !(l.is_finite() && l > 0.0) {
@@ -130,12 +131,19 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         Shading::Smooth => exporter::Shading::Smooth,
         Shading::Flat => exporter::Shading::Flat,
     };
+    let exposure = match cli.exposure {
+        Exposure::Value(x) => x,
+        Exposure::Auto => {
+            let areas: Vec<f64> = mesh.elements.iter().map(|e| e.area).collect();
+            exporter::auto_exposure(&areas, &solution.b)
+        }
+    };
     let vertex_bake = exporter::Bake {
         scene: &scene,
         mesh,
         radiosity: &solution.b,
         shading,
-        exposure: cli.exposure,
+        exposure,
     };
     if cli.target != Target::Lightmap {
         exporter::write_gltf(&cli.output, &vertex_bake)
@@ -152,6 +160,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         let lightmap_bake = exporter::LightmapBake {
             scene: &scene,
             lightmap: built,
+            keep_lights: cli.keep_lights,
         };
         exporter::write_lightmap_gltf(&paths, &lightmap_bake)
             .with_context(|| format!("cannot write {}", paths.gltf.display()))
@@ -185,7 +194,11 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         let mut report = Report::new(input, &scene, mesh, &solution.b, info)
             .with_context(|| format!("cannot build the report {}", path.display()))
             .map_err(internal)?;
-        report.options = options_json(cli, &bake, &settings, &scene);
+        report.options = options_json(cli, &bake, &settings, &scene, exposure);
+        for (entry, direct) in report.elements.iter_mut().zip(&bake.direct) {
+            entry.direct = *direct;
+        }
+        report.lights = light_entries(&scene, &bake);
         let counts = &bake.counts;
         report.counts.pairs_evaluated = counts.pairs_evaluated;
         report.counts.pairs_tested = counts.pairs_tested;
@@ -208,6 +221,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         };
         let energy = &bake.energy;
         report.energy = Some(EnergyInfo {
+            delivered: energy.delivered,
             emitted: energy.emitted,
             absorbed: energy.absorbed,
             escaped: energy.escaped,
@@ -244,6 +258,15 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         }
         if bake.counts.rays_cast > 0 {
             hardness += &format!(", {} shadow rays", bake.counts.rays_cast);
+        }
+        if !scene.lights.is_empty() {
+            let rays: u64 = bake.light_stats.iter().map(|s| s.rays_cast).sum();
+            hardness += &format!(", {} lights ({rays} light rays)", scene.lights.len());
+        }
+        match cli.exposure {
+            Exposure::Auto => hardness += &format!(", exposure auto = {exposure:.4e}"),
+            Exposure::Value(x) if x != 1.0 => hardness += &format!(", exposure {x}"),
+            Exposure::Value(_) => {}
         }
         if let Some(built) = &lightmap {
             hardness += &format!(
@@ -326,11 +349,17 @@ fn options_json(
     bake: &bake_core::Bake,
     settings: &bake_core::Settings,
     scene: &importer::Scene,
+    exposure: f64,
 ) -> serde_json::Value {
     let mut options = bake.options_json(settings);
     let output = serde_json::json!({
         "shading": match cli.shading { Shading::Smooth => "smooth", Shading::Flat => "flat" },
-        "exposure": cli.exposure,
+        "exposure": exposure,
+        "exposure_rule": match cli.exposure {
+            Exposure::Auto => "auto: the 99th percentile (by area) of the elements' brightest band maps to 0.8",
+            Exposure::Value(_) => "given",
+        },
+        "keep_lights": cli.keep_lights,
         "output": cli.output.display().to_string(),
         "target": match cli.target {
             Target::Vertex => "vertex",
@@ -346,4 +375,40 @@ fn options_json(
         map.extend(extra);
     }
     options
+}
+
+/// The report's `lights`: each light the bake used, where it is, and what it took.
+fn light_entries(scene: &importer::Scene, bake: &bake_core::Bake) -> Vec<LightEntry> {
+    scene
+        .lights
+        .iter()
+        .enumerate()
+        .map(|(l, light)| {
+            let stats = bake.light_stats.get(l).copied().unwrap_or_default();
+            let (inner, outer) = match light.kind {
+                importer::LightKind::Spot { inner, outer } => (Some(inner), Some(outer)),
+                _ => (None, None),
+            };
+            LightEntry {
+                kind: light.kind.name().to_string(),
+                name: light.name.clone(),
+                node: light.node,
+                position: light.position.to_array(),
+                direction: light.direction.to_array(),
+                intensity: light.intensity,
+                color: light.color,
+                range: light.range,
+                inner_cone_angle: inner,
+                outer_cone_angle: outer,
+                elements_lit: stats.elements_lit,
+                elements_shadowed: stats.elements_shadowed,
+                rays_cast: stats.rays_cast,
+                elements_sampled: stats.elements_sampled,
+                elements_clipped: stats.elements_clipped,
+                delivered: light
+                    .band_intensity()
+                    .map(|i| i * stats.flux / std::f64::consts::PI),
+            }
+        })
+        .collect()
 }

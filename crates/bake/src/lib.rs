@@ -4,7 +4,8 @@
 //! → solver) so that the `bake` CLI, `tools/accuracy-report`, the benchmarks and the tests run
 //! exactly the same bake: [`Settings::resolve`] turns a [`Request`] (the user's options) and
 //! its quality preset into settings once, and [`run`] performs the stages, gathers ρ and e per
-//! element, chooses the transport, solves, and times every stage.
+//! element, adds the punctual lights' first reflection `ρ E / π` to e (the paper's §2 E(j)),
+//! chooses the transport, solves, and times every stage.
 //!
 //! It is not the importer or the exporter (the caller reads the scene and writes the outputs)
 //! and knows no file formats or command-line syntax. It is the only crate that knows the
@@ -101,12 +102,20 @@ pub struct Bake {
     /// Per element: reflectance and emission of its material.
     pub rho: Vec<[f64; BANDS]>,
     pub emission: Vec<[f64; BANDS]>,
+    /// Per element: the punctual lights' first reflection `ρ E / π`, the part of `b` (and of
+    /// the source term `e + ρ E / π` the solver saw) that comes straight from the lights.
+    pub direct: Vec<[f64; BANDS]>,
+    /// Per element: mean illuminance E from the punctual lights (lux per band).
+    pub illuminance: Vec<[f64; BANDS]>,
+    /// Per light of the scene: what its direct-light pass did.
+    pub light_stats: Vec<direct::LightStats>,
     pub solution: Solution,
     /// The solve that ran.
     pub solve: Solve,
-    /// `H = F b` per element, when [`Request::irradiance`] asked for it.
+    /// `H = F b + E / π` per element (interreflected plus direct light), when
+    /// [`Request::irradiance`] asked for it.
     pub irradiance: Option<Vec<[f64; BANDS]>>,
-    /// Emitted = absorbed + escaped, per band.
+    /// Delivered + emitted = absorbed + escaped, per band.
     pub energy: EnergyBalance,
     pub counts: Counts,
     pub effects: visibility::Effects,
@@ -140,8 +149,8 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     let mesh = mesher::mesh(&scene.polygons, settings.subdivision)?;
     let n = mesh.elements.len();
     let (rho, emission) = element_values(scene, &mesh);
-    if emission.iter().all(|x| x.iter().all(|&v| v == 0.0)) {
-        warnings.push("the scene has no emitters: every radiosity is 0".to_string());
+    if scene.lights.is_empty() && emission.iter().all(|x| x.iter().all(|&v| v == 0.0)) {
+        warnings.push("the scene has no emitters and no lights: every radiosity is 0".to_string());
     }
     stage("mesh", &mut lap);
 
@@ -149,6 +158,37 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     let solve = settings.solve(transport.kind);
     let occluders = Occluders::new(&scene.polygons)?;
     stage("visibility_setup", &mut lap);
+
+    // Punctual lights: E per element, its irradiance E/π in b's unit (a diffuse surface under
+    // illuminance E has exitance ρE, luminance ρE/π), and the source term e + ρE/π.
+    progress.start("direct light", scene.lights.len() as u64);
+    let lit = direct::illuminate(
+        &scene.lights,
+        &mesh,
+        &occluders,
+        &direct::Options {
+            samples: settings.light_samples,
+        },
+    );
+    progress.finish();
+    let external: Vec<[f64; BANDS]> = lit
+        .illuminance
+        .iter()
+        .map(|e| e.map(|v| v / std::f64::consts::PI))
+        .collect();
+    let direct: Vec<[f64; BANDS]> = external
+        .iter()
+        .zip(&rho)
+        .map(|(h, r)| [r[0] * h[0], r[1] * h[1], r[2] * h[2]])
+        .collect();
+    let source: Vec<[f64; BANDS]> = emission
+        .iter()
+        .zip(&direct)
+        .map(|(e, d)| [e[0] + d[0], e[1] + d[1], e[2] + d[2]])
+        .collect();
+    if !scene.lights.is_empty() {
+        stage("direct_light", &mut lap);
+    }
     let (solution, irradiance, energy, counts, effects) = match transport.kind {
         TransportKind::Hierarchical => {
             let max_links = available_memory().map_or(u64::MAX, |bytes| {
@@ -168,7 +208,7 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                 &mesh,
                 &occluders,
                 &rho,
-                &emission,
+                &source,
                 &options,
                 &|k| progress.advance(k),
             );
@@ -209,9 +249,10 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                     )
                 },
             };
-            let solution = solve_with(&h, solve, &rho, &emission)?;
+            let solution = solve_with(&h, solve, &rho, &source)?;
             stage("solve", &mut lap);
-            let (irradiance, energy) = finish(&h, &mesh, &rho, &emission, &solution, settings)?;
+            let (irradiance, energy) =
+                finish(&h, &mesh, &rho, &emission, &external, &solution, settings)?;
             (solution, irradiance, energy, counts, effects)
         }
         _ => {
@@ -250,12 +291,13 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                 .with_accuracy(settings.estimator.row_sum_accuracy());
             let solution = match solve {
                 Solve::Direct => {
-                    solver::solve_direct(&f, &rho, &emission).map_err(BakeError::Solve)?
+                    solver::solve_direct(&f, &rho, &source).map_err(BakeError::Solve)?
                 }
-                _ => solve_with(&f, solve, &rho, &emission)?,
+                _ => solve_with(&f, solve, &rho, &source)?,
             };
             stage("solve", &mut lap);
-            let (irradiance, energy) = finish(&f, &mesh, &rho, &emission, &solution, settings)?;
+            let (irradiance, energy) =
+                finish(&f, &mesh, &rho, &emission, &external, &solution, settings)?;
             (solution, irradiance, energy, counts, effects)
         }
     };
@@ -265,6 +307,9 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
         mesh,
         rho,
         emission,
+        direct,
+        illuminance: lit.illuminance,
+        light_stats: lit.stats,
         solution,
         solve,
         irradiance,
@@ -299,24 +344,33 @@ fn solve_with<O: solver::Operator>(
 /// Linking passes of the hierarchical transport (the first with B = e).
 pub const LINK_PASSES: u32 = 4;
 
-/// `H = F b` per element and band.
+/// `H` per element and band.
 type Irradiance = Vec<[f64; BANDS]>;
 
-/// `H = F b` if asked for, and the energy balance, through any transport.
+/// `H = F b + H⁰` if asked for, and the energy balance, through any transport; `external` is
+/// the lights' irradiance `H⁰ = E / π`.
 fn finish<T: Transport>(
     transport: &T,
     mesh: &ElementMesh,
     rho: &[[f64; BANDS]],
     emission: &[[f64; BANDS]],
+    external: &[[f64; BANDS]],
     solution: &Solution,
     settings: &Settings,
 ) -> Result<(Option<Irradiance>, EnergyBalance), BakeError> {
-    let irradiance = settings
-        .irradiance
-        .then(|| transport.irradiance(&solution.b));
+    let irradiance = settings.irradiance.then(|| {
+        let mut h = transport.irradiance(&solution.b);
+        for (h, x) in h.iter_mut().zip(external) {
+            for c in 0..BANDS {
+                h[c] += x[c];
+            }
+        }
+        h
+    });
     let areas: Vec<f64> = mesh.elements.iter().map(|el| el.area).collect();
-    let energy = solver::energy_balance(transport, &areas, rho, emission, &solution.b)
-        .map_err(BakeError::Internal)?;
+    let energy =
+        solver::energy_balance_lit(transport, &areas, rho, emission, external, &solution.b)
+            .map_err(BakeError::Internal)?;
     Ok((irradiance, energy))
 }
 

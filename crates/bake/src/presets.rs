@@ -35,6 +35,7 @@ impl Quality {
                 visibility_samples: 49,
                 link_tolerance: 0.05,
                 link_samples: 9,
+                light_samples: 4,
             },
             Quality::Normal => Preset {
                 elements_per_diagonal: 16.0,
@@ -42,6 +43,7 @@ impl Quality {
                 visibility_samples: 121,
                 link_tolerance: 0.01,
                 link_samples: 25,
+                light_samples: 16,
             },
             Quality::High => Preset {
                 elements_per_diagonal: 32.0,
@@ -49,6 +51,7 @@ impl Quality {
                 visibility_samples: 961,
                 link_tolerance: 0.002,
                 link_samples: 49,
+                light_samples: 64,
             },
         }
     }
@@ -68,6 +71,8 @@ pub struct Preset {
     pub link_tolerance: f64,
     /// Hierarchical transport: shadow rays per link that a polygon may come between.
     pub link_samples: u32,
+    /// Shadow rays per element a polygon may shadow from a point or spot light.
+    pub light_samples: u32,
 }
 
 impl Preset {
@@ -96,6 +101,7 @@ mod tests {
             assert!(a.visibility_samples < b.visibility_samples);
             assert!(a.link_tolerance > b.link_tolerance);
             assert!(a.link_samples < b.link_samples);
+            assert!(a.light_samples < b.light_samples);
         }
     }
 }

@@ -87,6 +87,8 @@ pub struct Request {
     pub max_iterations: Option<u32>,
     pub transport: TransportKind,
     pub link_tolerance: Option<f64>,
+    /// Shadow rays per element a polygon may shadow from a point or spot light.
+    pub light_samples: Option<u32>,
     /// Compute the irradiance `H = F b` (lightmaps need it).
     pub irradiance: bool,
 }
@@ -108,6 +110,7 @@ impl Default for Request {
             max_iterations: None,
             transport: TransportKind::Auto,
             link_tolerance: None,
+            light_samples: None,
             irradiance: false,
         }
     }
@@ -140,6 +143,8 @@ pub struct Settings {
     pub link_tolerance: f64,
     /// Shadow rays per occludable link.
     pub link_samples: u32,
+    /// Shadow rays per element a polygon may shadow from a point or spot light.
+    pub light_samples: u32,
     pub irradiance: bool,
 }
 
@@ -159,6 +164,13 @@ impl Settings {
                  solved by GMRES); use --transport dense or --solver iterative"
                     .into(),
             ));
+        }
+        if let Some(k) = request.light_samples {
+            if !(1..=1024).contains(&k) {
+                return Err(BakeError::Options(format!(
+                    "--light-samples must be between 1 and 1024, got {k}"
+                )));
+            }
         }
         if let Some(t) = request.link_tolerance {
             if !(t.is_finite() && t > 0.0) {
@@ -198,6 +210,7 @@ impl Settings {
             direct_requested: request.solver == Some(SolverKind::Direct),
             link_tolerance: request.link_tolerance.unwrap_or(preset.link_tolerance),
             link_samples: request.visibility_samples.unwrap_or(preset.link_samples),
+            light_samples: request.light_samples.unwrap_or(preset.light_samples),
             irradiance: request.irradiance,
         })
     }
@@ -249,6 +262,7 @@ impl Settings {
             "visibility_samples": self.visibility_samples,
             "link_tolerance": hierarchical.then_some(self.link_tolerance),
             "link_samples": hierarchical.then_some(self.link_samples),
+            "light_samples": self.light_samples,
         })
     }
 }

@@ -46,6 +46,38 @@ pub struct Bake<'a> {
     pub exposure: f64,
 }
 
+/// `--exposure auto`: the exposure that maps the 99th percentile, by area, of the elements'
+/// brightest band of `b` to 0.8, so that at most about 1% of the surface saturates
+/// `COLOR_0` (light panels, a spot's hot spot) while the rest keeps its gradations. 1 when
+/// that percentile is 0 (a dark scene). `areas` and `radiosity` are per element.
+pub fn auto_exposure(areas: &[f64], radiosity: &[[f64; 3]]) -> f64 {
+    let mut values: Vec<(f64, f64)> = radiosity
+        .iter()
+        .zip(areas)
+        .map(|(b, &a)| (b[0].max(b[1]).max(b[2]), a))
+        .filter(|(v, a)| v.is_finite() && a.is_finite() && *a > 0.0)
+        .collect();
+    values.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let total: f64 = values.iter().map(|(_, a)| a).sum();
+    let mut below = 0.0;
+    let mut p99 = 0.0;
+    for (v, a) in &values {
+        below += a;
+        p99 = *v;
+        if below >= 0.99 * total {
+            break;
+        }
+    }
+    if p99 > 0.0 {
+        AUTO_EXPOSURE_WHITE / p99
+    } else {
+        1.0
+    }
+}
+
+/// The `COLOR_0` value `--exposure auto` gives the 99th-percentile element.
+pub const AUTO_EXPOSURE_WHITE: f64 = 0.8;
+
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
     #[error("cannot write {path}: {source}")]

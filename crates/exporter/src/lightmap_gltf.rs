@@ -87,6 +87,10 @@ fn sibling(path: &Path, suffix: &str) -> Result<PathBuf, ExportError> {
 pub struct LightmapBake<'a> {
     pub scene: &'a Scene,
     pub lightmap: &'a Lightmap,
+    /// Write the scene's punctual lights (`KHR_lights_punctual`) on their nodes. Their light
+    /// is already in the lightmap: a lit viewer would count it twice (`--keep-lights`, for
+    /// engines that want them for specular only).
+    pub keep_lights: bool,
 }
 
 /// What was written.
@@ -187,6 +191,9 @@ pub fn write_lightmap_gltf(
         });
         writer.root.nodes[node].mesh = Some(mesh_index);
     }
+    if bake.keep_lights && !scene.lights.is_empty() {
+        add_lights(&mut writer.root, scene);
+    }
     writer.root.extensions_used.push(LIGHTMAP_EXTENSION.into());
     if scene.materials.iter().any(|m| max3(m.emission) > 1.0) {
         writer
@@ -229,6 +236,47 @@ pub fn write_lightmap_gltf(
         png_scale: png.scale,
         files: written,
     })
+}
+
+/// The scene's lights as `KHR_lights_punctual`, each on its node (same node indices).
+fn add_lights(root: &mut json::Root, scene: &Scene) {
+    use json::extensions::scene::khr_lights_punctual as khr;
+    use json::validation::Checked;
+    let mut lights = Vec::with_capacity(scene.lights.len());
+    for (i, light) in scene.lights.iter().enumerate() {
+        let (type_, spot) = match light.kind {
+            importer::LightKind::Point => (khr::Type::Point, None),
+            importer::LightKind::Directional => (khr::Type::Directional, None),
+            importer::LightKind::Spot { inner, outer } => (
+                khr::Type::Spot,
+                Some(khr::Spot {
+                    inner_cone_angle: inner as f32,
+                    outer_cone_angle: outer as f32,
+                }),
+            ),
+        };
+        lights.push(khr::Light {
+            color: light.color.map(|c| c as f32),
+            extensions: None,
+            extras: Default::default(),
+            intensity: light.intensity as f32,
+            name: light.name.clone(),
+            range: light.range.map(|r| r as f32),
+            spot,
+            type_: Checked::Valid(type_),
+        });
+        if let Some(node) = root.nodes.get_mut(light.node) {
+            node.extensions
+                .get_or_insert_with(Default::default)
+                .khr_lights_punctual = Some(khr::KhrLightsPunctual {
+                light: Index::new(i as u32),
+            });
+        }
+    }
+    root.extensions
+        .get_or_insert_with(Default::default)
+        .khr_lights_punctual = Some(json::extensions::root::KhrLightsPunctual { lights });
+    root.extensions_used.push("KHR_lights_punctual".into());
 }
 
 /// The root `extras`: what the lightmap is, its units and its files.

@@ -22,8 +22,9 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The version of this report's layout (2: `solver.condition`, `solver.iterations`, the
-/// `iterative` method and the `energy` object).
-pub const SCHEMA_VERSION: u32 = 3;
+/// `iterative` method and the `energy` object; 4: `lights`, `energy.delivered`, elements'
+/// `direct`).
+pub const SCHEMA_VERSION: u32 = 4;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Report {
@@ -45,6 +46,9 @@ pub struct Report {
     /// The light transport used and why (absent in older reports).
     #[serde(default)]
     pub transport: TransportInfo,
+    /// The punctual lights the bake used (absent in older reports).
+    #[serde(default)]
+    pub lights: Vec<LightEntry>,
     pub warnings: Vec<String>,
     pub polygons: Vec<PolygonEntry>,
     pub elements: Vec<ElementEntry>,
@@ -146,17 +150,53 @@ pub struct SolverInfo {
     pub iterations: [u32; 3],
 }
 
-/// Conservation of energy per band, in the report's power unit (intensity × area): emitted =
-/// absorbed + escaped for a solved system with reciprocal form factors.
+/// One punctual light the bake used, in world space, and what its direct light took.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LightEntry {
+    /// `point`, `spot` or `directional`.
+    #[serde(rename = "type")]
+    pub kind: String,
+    pub name: Option<String>,
+    /// Index of the node carrying it.
+    pub node: usize,
+    pub position: [f64; 3],
+    /// Unit direction the light travels (spot axis, sun rays).
+    pub direction: [f64; 3],
+    /// Candela (point, spot) or lux (directional).
+    pub intensity: f64,
+    pub color: [f64; 3],
+    pub range: Option<f64>,
+    /// Spot cone half-angles in radians.
+    pub inner_cone_angle: Option<f64>,
+    pub outer_cone_angle: Option<f64>,
+    /// Elements it lights, elements some polygon may shadow from it, shadow rays cast,
+    /// elements whose falloff was integrated over sub-cells, elements clipped exactly.
+    pub elements_lit: u64,
+    pub elements_shadowed: u64,
+    pub rays_cast: u64,
+    pub elements_sampled: u64,
+    pub elements_clipped: u64,
+    /// `Σ A_i E_i / π` per band: what it delivered, in the energy unit.
+    pub delivered: [f64; 3],
+}
+
+/// Conservation of energy per band, in the report's power unit (intensity × area):
+/// delivered + emitted = absorbed + escaped for a solved system with reciprocal form factors.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct EnergyInfo {
+    /// `Σ A_i E_i / π`: what the punctual lights delivered (E: mean illuminance; absent in
+    /// older reports: 0).
+    #[serde(default)]
+    pub delivered: [f64; 3],
     /// `Σ A_i e_i`.
     pub emitted: [f64; 3],
-    /// `Σ A_i (1 − ρ_i) H_i`, `H_i = Σ_j F_ij b_j` the light arriving at element i.
+    /// `Σ A_i (1 − ρ_i) (H_i + E_i / π)`, `H_i = Σ_j F_ij b_j` the interreflected light
+    /// arriving at element i (the lights' first hit included).
     pub absorbed: [f64; 3],
     /// `Σ A_i b_i (1 − Σ_j F_ij)`: light leaving through openings (≈ 0 in a closed scene).
     pub escaped: [f64; 3],
-    /// `|emitted − absorbed − escaped| / emitted`, absolute when nothing is emitted.
+    /// `|delivered + emitted − absorbed − escaped| / (delivered + emitted)`, absolute when
+    /// nothing enters.
     pub imbalance: [f64; 3],
     /// Whether each band's imbalance is relative (to the emitted power) rather than absolute.
     pub imbalance_relative: [bool; 3],
@@ -204,6 +244,9 @@ pub struct ElementEntry {
     pub e: [f64; 3],
     /// Radiosity (unclamped, before exposure).
     pub b: [f64; 3],
+    /// The part of `b` straight from punctual lights, `ρ E / π` (absent in older reports: 0).
+    #[serde(default)]
+    pub direct: [f64; 3],
 }
 
 impl Report {
@@ -227,6 +270,7 @@ impl Report {
             energy: None,
             effects: Effects::default(),
             transport: TransportInfo::default(),
+            lights: Vec::new(),
             warnings: scene.warnings.clone(),
             polygons: Report::polygons_from(scene),
             elements: Report::elements_from(scene, mesh, radiosity)?,
@@ -285,6 +329,7 @@ impl Report {
                     rho: material.rho,
                     e: material.emission,
                     b: *b,
+                    direct: [0.0; 3],
                 })
             })
             .collect()
@@ -333,19 +378,32 @@ pub fn write_report(path: &Path, report: &Report) -> Result<(), ExportError> {
 fn check_finite(report: &Report) -> Result<(), ExportError> {
     let not_finite = |what: String| Err(ExportError::NonFinite { what });
     for (i, element) in report.elements.iter().enumerate() {
-        let fields: [(&str, &[f64]); 6] = [
+        let fields: [(&str, &[f64]); 7] = [
             ("centroid", &element.centroid),
             ("normal", &element.normal),
             ("area", std::slice::from_ref(&element.area)),
             ("rho", &element.rho),
             ("e", &element.e),
             ("b", &element.b),
+            ("direct", &element.direct),
         ];
         if let Some((name, values)) = fields.iter().find(|(_, v)| !all_finite(v)) {
             return not_finite(format!(
                 "report {}: {name} {values:?}",
                 element_name(report, i)
             ));
+        }
+    }
+    for light in &report.lights {
+        let values = light
+            .position
+            .iter()
+            .chain(&light.direction)
+            .chain(&light.color)
+            .chain(&light.delivered)
+            .chain(std::iter::once(&light.intensity));
+        if !values.copied().all(f64::is_finite) {
+            return not_finite(format!("report light on node {}", light.node));
         }
     }
     if let Some((stage, seconds)) = report.timings.iter().find(|(_, s)| !s.is_finite()) {
@@ -360,6 +418,7 @@ fn check_finite(report: &Report) -> Result<(), ExportError> {
     }
     if let Some(energy) = &report.energy {
         let fields = [
+            ("delivered", &energy.delivered),
             ("emitted", &energy.emitted),
             ("absorbed", &energy.absorbed),
             ("escaped", &energy.escaped),

@@ -150,6 +150,7 @@ fn report_with_nan_is_refused_not_written_as_null() {
 
     let mut report = report_with(&fixture.radiosity);
     report.energy = Some(EnergyInfo {
+        delivered: [0.0; 3],
         emitted: [1.0; 3],
         absorbed: [0.5, f64::NAN, 0.5],
         escaped: [0.5; 3],

@@ -37,6 +37,7 @@ fn report() -> Report {
     report.options = serde_json::json!({"subdivision": 2, "exposure": 0.9});
     report.counts.pairs_evaluated = 91;
     report.energy = Some(EnergyInfo {
+        delivered: [0.0; 3],
         emitted: [1.0, 0.0, 2.5],
         absorbed: [0.7, 0.0, 2.5 - 1e-12],
         escaped: [0.3 - 1e-17, 0.0, 0.0],
@@ -52,7 +53,7 @@ fn report() -> Report {
 fn report_holds_the_scene_and_results() {
     let fixture = fixture();
     let report = report();
-    assert_eq!(report.schema_version, 3);
+    assert_eq!(report.schema_version, 4);
     assert_eq!(report.input, "scenes/cube.gltf");
     assert_eq!(
         report.counts,

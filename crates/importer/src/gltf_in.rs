@@ -7,8 +7,8 @@
 use crate::accessor;
 use crate::polygon::{self, Instance, SourceFace};
 use crate::{
-    check_material, describe, ImportError, ImportStats, Layout, Material, Mesh, Node, Origin,
-    Primitive, Scene, SceneRoots, Side, Transform,
+    check_material, describe, ImportError, ImportStats, Layout, Light, LightKind, Material, Mesh,
+    Node, Origin, Primitive, Scene, SceneRoots, Side, Transform,
 };
 use glam::{DMat4, DQuat, DVec3};
 use gltf::json::mesh::{Mode, Semantic};
@@ -292,6 +292,7 @@ fn build_scene(
     }
     let mut stats = ImportStats::default();
     let mut warnings = Vec::new();
+    let lights = read_lights(root, &layout, &baked_nodes, &mut warnings);
     let mut cache: HashMap<(usize, usize), Option<LocalPrimitive>> = HashMap::new();
     let mut checked = vec![false; materials.len()];
     let mut instances = Vec::new();
@@ -370,6 +371,7 @@ fn build_scene(
     Ok(Scene {
         polygons,
         materials,
+        lights,
         layout,
         stats,
         warnings,
@@ -394,6 +396,112 @@ fn placeable(node: &Node, name: &str, warnings: &mut Vec<String>) -> Result<bool
         return Ok(false);
     }
     Ok(true)
+}
+
+/// The `KHR_lights_punctual` lights of the baked nodes, in world space. A light that cannot
+/// be used is skipped with a warning (never silently): see [`crate::load`].
+fn read_lights(
+    root: &Root,
+    layout: &Layout,
+    baked: &[usize],
+    warnings: &mut Vec<String>,
+) -> Vec<Light> {
+    use gltf::json::extensions::scene::khr_lights_punctual as khr;
+    let definitions: &[khr::Light] = root.as_ref();
+    let mut lights = Vec::new();
+    for &n in baked {
+        let Some(index) = root
+            .nodes
+            .get(n)
+            .and_then(|json| json.extensions.as_ref())
+            .and_then(|e| e.khr_lights_punctual.as_ref())
+            .map(|l| l.light.value())
+        else {
+            continue;
+        };
+        let node = &layout.nodes[n];
+        let node_name = describe("node", node.name.as_deref(), n);
+        let Some(light) = definitions.get(index) else {
+            warnings.push(format!(
+                "{node_name}: light {index} does not exist; no light used"
+            ));
+            continue;
+        };
+        let name = describe("light", light.name.as_deref(), index);
+        match place_light(light, node) {
+            Ok((kind, position, direction)) => lights.push(Light {
+                name: light.name.clone(),
+                node: n,
+                kind,
+                position,
+                direction,
+                color: light.color.map(f64::from),
+                intensity: f64::from(light.intensity),
+                range: light.range.map(f64::from),
+            }),
+            Err(why) => warnings.push(format!("{name} on {node_name}: skipped ({why})")),
+        }
+    }
+    lights
+}
+
+/// A light's kind and world placement, or why it cannot be used.
+fn place_light(
+    light: &gltf::json::extensions::scene::khr_lights_punctual::Light,
+    node: &Node,
+) -> Result<(LightKind, DVec3, DVec3), String> {
+    use gltf::json::extensions::scene::khr_lights_punctual::Type;
+    if !(light.intensity.is_finite() && light.intensity >= 0.0) {
+        return Err(format!(
+            "intensity {} is not a finite value ≥ 0",
+            light.intensity
+        ));
+    }
+    if !light.color.iter().all(|c| c.is_finite() && *c >= 0.0) {
+        return Err(format!("colour {:?} is not finite and ≥ 0", light.color));
+    }
+    if let Some(range) = light.range {
+        if !(range.is_finite() && range > 0.0) {
+            return Err(format!("range {range} is not a finite value > 0"));
+        }
+    }
+    let determinant = node.world.determinant();
+    if !determinant.is_finite() || determinant == 0.0 {
+        return Err("its node's world transform is singular or not finite".into());
+    }
+    let position = node.world.transform_point3(DVec3::ZERO);
+    // The extension: lights shine along the node's local −Z.
+    let direction = node
+        .world
+        .transform_vector3(DVec3::NEG_Z)
+        .normalize_or_zero();
+    if direction == DVec3::ZERO || !position.is_finite() {
+        return Err("its node's world transform gives no direction".into());
+    }
+    let kind = match &light.type_ {
+        Checked::Valid(Type::Point) => LightKind::Point,
+        Checked::Valid(Type::Directional) => LightKind::Directional,
+        Checked::Valid(Type::Spot) => {
+            let spot = light.spot.clone().unwrap_or_default();
+            let (inner, outer) = (
+                f64::from(spot.inner_cone_angle),
+                f64::from(spot.outer_cone_angle),
+            );
+            // π/2 written as f32 is 4e-8 above the f64 value: allow that much.
+            let quarter_turn = std::f64::consts::FRAC_PI_2;
+            if !(0.0 <= inner && inner <= outer && outer > 0.0 && outer <= quarter_turn + 1e-6) {
+                return Err(format!(
+                    "spot cone angles inner {inner} and outer {outer} are not 0 ≤ inner ≤ outer ≤ π/2"
+                ));
+            }
+            LightKind::Spot {
+                inner: inner.min(quarter_turn),
+                outer: outer.min(quarter_turn),
+            }
+        }
+        Checked::Invalid => return Err("unknown light type".into()),
+    };
+    Ok((kind, position, direction))
 }
 
 /// True when some primitive has no material (and so uses the glTF default material).

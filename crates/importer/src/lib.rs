@@ -8,6 +8,8 @@
 //! - [`Material`]s with reflectance ρ and emission e per colour band (RGB);
 //! - a [`Layout`]: the input's node hierarchy, names and transforms, so the exporter can
 //!   write the baked scene back with the same structure;
+//! - punctual [`Light`]s (glTF `KHR_lights_punctual`: point, spot, directional) in world
+//!   space; OBJ has no lights;
 //! - [`ImportStats`] and human-readable warnings for everything that was dropped or changed.
 
 use glam::{DMat4, DVec3};
@@ -80,6 +82,57 @@ pub struct Node {
     pub world: DMat4,
 }
 
+/// A punctual light (glTF `KHR_lights_punctual`) placed in world space by its node.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Light {
+    /// The light's own name (not the node's).
+    pub name: Option<String>,
+    /// Index into [`Layout::nodes`] of the node that carries it.
+    pub node: usize,
+    pub kind: LightKind,
+    /// World position of the node's origin (where a point or spot light sits).
+    pub position: DVec3,
+    /// Unit world direction the light travels: the node's local −Z (spot axis, sun rays).
+    pub direction: DVec3,
+    /// Linear RGB colour, as written (each band finite and ≥ 0).
+    pub color: [f64; 3],
+    /// Candela (point, spot: luminous intensity) or lux (directional: illuminance on a
+    /// surface facing the light), as written.
+    pub intensity: f64,
+    /// Distance beyond which a point or spot light gives no light (`range`), if given.
+    pub range: Option<f64>,
+}
+
+impl Light {
+    /// Intensity per band: `color × intensity` (candela or lux per band).
+    pub fn band_intensity(&self) -> [f64; 3] {
+        self.color.map(|c| c * self.intensity)
+    }
+}
+
+/// What kind of punctual light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightKind {
+    /// Light in all directions from a point.
+    Point,
+    /// A point light limited to a cone about [`Light::direction`]: full intensity inside
+    /// `inner` (radians from the axis), none outside `outer`, 0 ≤ inner < outer ≤ π/2.
+    Spot { inner: f64, outer: f64 },
+    /// Parallel light along [`Light::direction`] (the sun).
+    Directional,
+}
+
+impl LightKind {
+    /// The extension's name for it.
+    pub fn name(&self) -> &'static str {
+        match self {
+            LightKind::Point => "point",
+            LightKind::Spot { .. } => "spot",
+            LightKind::Directional => "directional",
+        }
+    }
+}
+
 /// A node's local transform, as written in the input.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Transform {
@@ -147,6 +200,8 @@ pub struct ImportStats {
 pub struct Scene {
     pub polygons: Vec<Polygon>,
     pub materials: Vec<Material>,
+    /// Punctual lights of the baked nodes, in node order (empty for OBJ).
+    pub lights: Vec<Light>,
     pub layout: Layout,
     pub stats: ImportStats,
     /// One line per thing the user should know about (dropped faces, skipped primitives).
@@ -186,6 +241,10 @@ pub enum ImportError {
 ///   single-sided), appended after the file's materials when some primitive needs it.
 ///   A node whose world matrix is singular (a scale of 0) is skipped with a warning: its
 ///   bake could not be written back in its local space.
+///   `KHR_lights_punctual` lights on baked nodes become [`Light`]s; a light that cannot be
+///   used (a singular node transform, a non-finite or negative intensity or colour, a
+///   non-positive range, spot cones outside 0 ≤ inner < outer ≤ π/2) is skipped with a
+///   warning naming it.
 /// - OBJ: one mesh (and one identity node) per `tobj` model, all in one scene. ρ = `Kd`,
 ///   e = `Ke`, single-sided. A face without a material (no `usemtl`, a missing MTL file or
 ///   an unknown name) uses a neutral grey default: ρ = 0.8, e = 0, appended after the MTL

@@ -402,6 +402,7 @@ fn build_scene(
     Ok(Scene {
         polygons,
         materials,
+        lights: Vec::new(),
         layout,
         stats,
         warnings,

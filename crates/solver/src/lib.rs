@@ -67,7 +67,7 @@ use thiserror::Error;
 mod energy;
 mod iterative;
 
-pub use energy::{energy_balance, EnergyBalance};
+pub use energy::{energy_balance, energy_balance_lit, EnergyBalance};
 pub use iterative::{solve_iterative, IterativeOptions};
 
 /// Number of colour bands (r, g, b).

@@ -213,10 +213,26 @@ pub(crate) fn may_block(k: &Piece, a: &Patch, b: &Patch, tol: f64) -> bool {
 /// Test 4 of [`may_block`]: a plane through an edge of `a` and a corner of `b` with all of
 /// `a ∪ b` on one side and `k` on the other.
 fn separated_by_hull_side(k: &Piece, a: &Patch, b: &Patch, tol: f64) -> bool {
-    let ac = a.corners();
-    for e in 0..ac.len() {
-        let (p, q) = (ac[e], ac[(e + 1) % ac.len()]);
-        for &w in b.corners() {
+    let mut hull = [DVec3::ZERO; 8];
+    let n = a.corners().len() + b.corners().len();
+    for (slot, &p) in hull.iter_mut().zip(a.corners().iter().chain(b.corners())) {
+        *slot = p;
+    }
+    separated_by_side(k, a.corners(), b.corners(), &hull[..n], tol)
+}
+
+/// A plane through an edge of the polygon `ring` and one of the `apexes`, with every point of
+/// `hull` on one closed side (within `tol`) and `k` wholly on the other.
+fn separated_by_side(
+    k: &Piece,
+    ring: &[DVec3],
+    apexes: &[DVec3],
+    hull: &[DVec3],
+    tol: f64,
+) -> bool {
+    for e in 0..ring.len() {
+        let (p, q) = (ring[e], ring[(e + 1) % ring.len()]);
+        for &w in apexes {
             let n = (q - p).cross(w - p);
             let len = n.length();
             if len <= f64::MIN_POSITIVE {
@@ -224,10 +240,9 @@ fn separated_by_hull_side(k: &Piece, a: &Patch, b: &Patch, tol: f64) -> bool {
             }
             let n = n / len;
             let h = |x: &DVec3| (*x - p).dot(n);
-            let both = || a.corners().iter().chain(b.corners());
-            let side = if both().all(|x| h(x) >= -tol) {
+            let side = if hull.iter().all(|x| h(x) >= -tol) {
                 1.0
-            } else if both().all(|x| h(x) <= tol) {
+            } else if hull.iter().all(|x| h(x) <= tol) {
                 -1.0
             } else {
                 continue;
@@ -238,6 +253,40 @@ fn separated_by_hull_side(k: &Piece, a: &Patch, b: &Patch, tol: f64) -> bool {
         }
     }
     false
+}
+
+/// Conservative test for light from outside the scene's surfaces: can the polygon `k` block
+/// some segment from a point of `receiver` to one of the `far` points (a point light: one
+/// point; a directional light: the receiver's corners moved toward the light past the scene)?
+/// The segments fill the convex hull of `receiver ∪ far`; `false` only when a plane separates
+/// `k` from it. The same tests as [`may_block`], with the far points in place of a patch:
+/// 1. bounding boxes; 2. `k`'s own plane has the whole hull on one closed side; 3. `k` has no
+///    part more than `tol` in front of the receiver (the segments lie in front of it);
+/// 4. a plane through a receiver edge and a far point with the hull on one side, `k` on the
+///    other.
+pub(crate) fn may_block_light(k: &Piece, receiver: &Patch, far: &[DVec3], tol: f64) -> bool {
+    let (mut lo, mut hi) = receiver.bounds();
+    for &p in far {
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    if k.lo.cmpgt(hi + tol).any() || k.hi.cmplt(lo - tol).any() {
+        return false;
+    }
+    let all = || receiver.corners().iter().chain(far);
+    let kh = |p: &DVec3| k.patch.height(*p);
+    if all().all(|p| kh(p) >= -tol) || all().all(|p| kh(p) <= tol) {
+        return false;
+    }
+    if !k.patch.corners().iter().any(|&x| receiver.height(x) > tol) {
+        return false;
+    }
+    let mut hull = [DVec3::ZERO; 8];
+    let n = receiver.corners().len() + far.len().min(4);
+    for (slot, &p) in hull.iter_mut().zip(all()) {
+        *slot = p;
+    }
+    !separated_by_side(k, receiver.corners(), far, &hull[..n], tol)
 }
 
 #[cfg(test)]
@@ -293,6 +342,52 @@ mod tests {
         // Coplanar with a.
         let beside = Piece::new(square(0.0, 3.0, true, 4));
         assert!(!may_block(&beside, &a, &b, 1e-9));
+    }
+
+    #[test]
+    fn light_segments_are_blocked_only_by_polygons_in_their_hull() {
+        let floor = square(0.0, 2.0, true, 0);
+        let light = [DVec3::new(0.0, 0.0, 2.0)];
+        let tol = 1e-9;
+        // Between the light and the floor.
+        assert!(may_block_light(
+            &Piece::new(square(1.0, 0.5, false, 1)),
+            &floor,
+            &light,
+            tol
+        ));
+        // Above the light, or off to the side of the pyramid, or on the floor's plane.
+        assert!(!may_block_light(
+            &Piece::new(square(3.0, 5.0, false, 2)),
+            &floor,
+            &light,
+            tol
+        ));
+        let mut side = [DVec3::ZERO; 4];
+        for (k, c) in square(0.0, 0.5, true, 3).corners().iter().enumerate() {
+            side[k] = *c + DVec3::new(2.0, 0.0, 1.5);
+        }
+        let side = Piece::new(Patch::new(&side, DVec3::Z, 3).unwrap());
+        assert!(!may_block_light(&side, &floor, &light, tol));
+        assert!(!may_block_light(
+            &Piece::new(square(0.0, 9.0, true, 4)),
+            &floor,
+            &light,
+            tol
+        ));
+        // A directional light straight down: far points above each corner.
+        let far: Vec<DVec3> = floor
+            .corners()
+            .iter()
+            .map(|c| *c + DVec3::Z * 10.0)
+            .collect();
+        assert!(may_block_light(
+            &Piece::new(square(5.0, 0.5, false, 5)),
+            &floor,
+            &far,
+            tol
+        ));
+        assert!(!may_block_light(&side, &floor, &far, tol));
     }
 
     #[test]

@@ -32,10 +32,10 @@ mod geometry;
 mod sampling;
 
 pub use geometry::Patch;
-pub use sampling::{pair_seed, rays_for, Pattern};
+pub use sampling::{pair_seed, rays_for, strata, Pattern, SplitMix64};
 
 use bvh::Tree;
-use geometry::{facing, may_block, Piece};
+use geometry::{facing, may_block, may_block_light, Piece};
 use glam::DVec3;
 use importer::Polygon;
 use mesher::ElementMesh;
@@ -127,6 +127,19 @@ impl Counters {
         self.rays_cast += other.rays_cast;
         self
     }
+}
+
+/// The bounding box of a receiver and the far points of its light segments.
+fn light_box(receiver: &Patch, far: &[DVec3]) -> (DVec3, DVec3) {
+    far.iter().fold(
+        receiver
+            .corners()
+            .iter()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            }),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    )
 }
 
 /// One occludable pair of a polygon p: (q, candidate occluders).
@@ -291,6 +304,34 @@ impl Occluders {
             }
         }
         (facing_pairs, row)
+    }
+
+    /// Conservative, for punctual lights: `false` only when no polygon other than the
+    /// receiver's can block a segment from a point of `receiver` to one of the `far` points
+    /// (a point light's position; for a directional light, the receiver's corners moved
+    /// toward the light by the scene size). Finds candidates in the BVH, stops at the first.
+    pub fn can_shadow(&self, receiver: &Patch, far: &[DVec3]) -> bool {
+        let Some(tree) = &self.tree else { return false };
+        let tol = self.tol();
+        let (lo, hi) = light_box(receiver, far);
+        tree.any_in_box(lo, hi, |k| {
+            k != receiver.polygon() && may_block_light(&self.pieces[k], receiver, far, tol)
+        })
+    }
+
+    /// Every polygon [`Occluders::can_shadow`] would find, sorted, into `out` (cleared).
+    pub fn shadow_candidates(&self, receiver: &Patch, far: &[DVec3], out: &mut Vec<usize>) {
+        out.clear();
+        let Some(tree) = &self.tree else { return };
+        let tol = self.tol();
+        let (lo, hi) = light_box(receiver, far);
+        tree.for_each_in_box(lo, hi, |k| {
+            if k != receiver.polygon() && may_block_light(&self.pieces[k], receiver, far, tol) {
+                out.push(k);
+            }
+        });
+        out.sort_unstable();
+        out.dedup();
     }
 
     /// Whether the segment p–q is blocked by a polygon other than those in `skip` (exact f64

@@ -3,7 +3,7 @@
 /// SplitMix64 (Steele, Lea & Flood 2014): a 64-bit state, one add and a mix per number.
 /// Passes BigCrush; more than enough for jitter and shuffles.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct SplitMix64(u64);
+pub struct SplitMix64(u64);
 
 impl SplitMix64 {
     pub fn new(seed: u64) -> Self {

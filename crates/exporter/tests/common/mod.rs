@@ -52,6 +52,7 @@ pub fn fixture() -> Fixture {
     let scene = Scene {
         polygons,
         materials: materials(),
+        lights: Vec::new(),
         layout,
         stats: ImportStats {
             faces_read: 12,

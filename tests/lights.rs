@@ -1,0 +1,401 @@
+//! Punctual lights (`KHR_lights_punctual`) end to end, against closed forms: a point light's
+//! mean illuminance over a rectangle (the corner-sum solid angle, independent of the baker's
+//! triangle fan), a spot inside and outside its cones, a sun's cos θ, a sun's exact shadow of a
+//! square, and the energy balance of a closed box lit only by a point light.
+
+mod common;
+
+use common::{bake, data_uri, write_json};
+use exporter::report::{ElementEntry, Report};
+use serde_json::{json, Value};
+use std::f64::consts::PI;
+use std::path::Path;
+
+const RHO: [f64; 3] = [0.5, 0.4, 0.3];
+
+/// Triangles (CCW about their normal) of the 10 × 10 m floor at y = 0, facing +y.
+fn floor() -> Vec<[f32; 3]> {
+    let (a, b, c, d) = (
+        [-5.0, 0.0, -5.0],
+        [-5.0, 0.0, 5.0],
+        [5.0, 0.0, 5.0],
+        [5.0, 0.0, -5.0],
+    );
+    vec![a, b, c, a, c, d]
+}
+
+/// A 2 × 2 m square at height 2 m facing down (−y), centred above the origin.
+fn black_square() -> Vec<[f32; 3]> {
+    let (a, b, c, d) = (
+        [-1.0, 2.0, -1.0],
+        [1.0, 2.0, -1.0],
+        [1.0, 2.0, 1.0],
+        [-1.0, 2.0, 1.0],
+    );
+    vec![a, b, c, a, c, d]
+}
+
+/// A glTF scene: one mesh per (triangles, baseColor) and one light node per light
+/// `(light json, node json without the extension)`.
+fn scene(meshes: &[(Vec<[f32; 3]>, [f64; 3])], lights: &[(Value, Value)]) -> Value {
+    let mut bytes = Vec::new();
+    let mut accessors = Vec::new();
+    let mut views = Vec::new();
+    let mut gltf_meshes = Vec::new();
+    let mut materials = Vec::new();
+    let mut nodes = Vec::new();
+    for (k, (positions, rho)) in meshes.iter().enumerate() {
+        let offset = bytes.len();
+        for p in positions {
+            for v in p {
+                bytes.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        let mut min = [f32::INFINITY; 3];
+        let mut max = [f32::NEG_INFINITY; 3];
+        for p in positions {
+            for a in 0..3 {
+                min[a] = min[a].min(p[a]);
+                max[a] = max[a].max(p[a]);
+            }
+        }
+        views
+            .push(json!({ "buffer": 0, "byteOffset": offset, "byteLength": positions.len() * 12 }));
+        accessors.push(
+            json!({ "bufferView": k, "componentType": 5126, "count": positions.len(),
+                               "type": "VEC3", "min": min, "max": max }),
+        );
+        materials.push(json!({ "pbrMetallicRoughness": {
+            "baseColorFactor": [rho[0], rho[1], rho[2], 1.0], "metallicFactor": 0.0 } }));
+        gltf_meshes
+            .push(json!({ "primitives": [{ "attributes": { "POSITION": k }, "material": k }] }));
+        nodes.push(json!({ "name": format!("mesh{k}"), "mesh": k }));
+    }
+    let mut light_defs = Vec::new();
+    for (k, (light, node)) in lights.iter().enumerate() {
+        let mut node = node.clone();
+        node["name"] = json!(format!("light{k}"));
+        node["extensions"] = json!({ "KHR_lights_punctual": { "light": k } });
+        nodes.push(node);
+        light_defs.push(light.clone());
+    }
+    let roots: Vec<usize> = (0..nodes.len()).collect();
+    json!({
+        "asset": { "version": "2.0" },
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensionsRequired": ["KHR_lights_punctual"],
+        "extensions": { "KHR_lights_punctual": { "lights": light_defs } },
+        "scene": 0,
+        "scenes": [{ "nodes": roots }],
+        "nodes": nodes,
+        "meshes": gltf_meshes,
+        "materials": materials,
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{ "byteLength": bytes.len(), "uri": data_uri(&bytes) }],
+    })
+}
+
+/// Rotation (x, y, z, w) taking the light's local −Z to the unit vector `d`.
+fn aim(d: [f64; 3]) -> [f64; 4] {
+    // q = normalize(a × d, 1 + a · d) with a = (0, 0, −1).
+    let (x, y, z, w) = (d[1], -d[0], 0.0, 1.0 - d[2]);
+    let n = (x * x + y * y + z * z + w * w).sqrt();
+    [x / n, y / n, z / n, w / n]
+}
+
+/// Bakes `doc` (vertex target, report) with `args`; returns the report.
+fn bake_report(dir: &Path, doc: &Value, args: &[&str]) -> Report {
+    let input = dir.join("in.gltf");
+    write_json(&input, doc);
+    let out = dir.join("out.gltf");
+    let report = dir.join("report.json");
+    let mut all: Vec<&std::ffi::OsStr> = vec![
+        "--quiet".as_ref(),
+        "--target".as_ref(),
+        "vertex".as_ref(),
+        input.as_os_str(),
+        out.as_os_str(),
+        "--report".as_ref(),
+        report.as_os_str(),
+    ];
+    all.extend(args.iter().map(std::ffi::OsStr::new));
+    bake(all).success();
+    exporter::report::read_report(&report).expect("read the report")
+}
+
+/// The floor's elements, with their square's x and z bounds.
+fn floor_elements(report: &Report) -> Vec<(&ElementEntry, [f64; 4])> {
+    report
+        .elements
+        .iter()
+        .filter(|e| e.normal[1] > 0.5 && e.centroid[1].abs() < 1e-9)
+        .map(|e| {
+            let h = e.area.sqrt() / 2.0;
+            let (x, z) = (e.centroid[0], e.centroid[2]);
+            (e, [x - h, x + h, z - h, z + h])
+        })
+        .collect()
+}
+
+/// Solid angle of the rectangle [x0, x1] × [z0, z1] (coordinates relative to the foot of a
+/// point at height h): corner sums of Ω(x, z) = atan(x z / (h √(x² + z² + h²))), the solid
+/// angle of [0, x] × [0, z] seen from above its corner (odd in x and in z).
+fn rectangle_solid_angle(r: [f64; 4], h: f64) -> f64 {
+    let f = |x: f64, z: f64| (x * z / (h * (x * x + z * z + h * h).sqrt())).atan();
+    f(r[1], r[3]) - f(r[0], r[3]) - f(r[1], r[2]) + f(r[0], r[2])
+}
+
+fn shifted(r: [f64; 4], x: f64, z: f64) -> [f64; 4] {
+    [r[0] - x, r[1] - x, r[2] - z, r[3] - z]
+}
+
+fn assert_relative(b: [f64; 3], expected: [f64; 3], tolerance: f64, what: &str) {
+    for c in 0..3 {
+        let error = (b[c] - expected[c]).abs() / expected[c];
+        assert!(
+            error <= tolerance,
+            "{what}: band {c}: b {} vs {} (relative error {error:.2e})",
+            b[c],
+            expected[c]
+        );
+    }
+}
+
+#[test]
+fn point_light_over_a_floor_matches_the_solid_angle_closed_form() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (lx, lz, h, intensity) = (0.3, -0.2, 2.0, 100.0);
+    let doc = scene(
+        &[(floor(), RHO)],
+        &[(
+            json!({ "type": "point", "intensity": intensity }),
+            json!({ "translation": [lx, h, lz] }),
+        )],
+    );
+    let report = bake_report(dir.path(), &doc, &[]);
+    let elements = floor_elements(&report);
+    assert!(elements.len() >= 100, "{} floor elements", elements.len());
+    let mut delivered = 0.0;
+    for (e, r) in &elements {
+        let omega = rectangle_solid_angle(shifted(*r, lx, lz), h);
+        let expected = RHO.map(|rho| rho * intensity * omega / (PI * e.area));
+        assert_relative(e.b, expected, 5e-3, "point light");
+        assert_relative(e.direct, expected, 5e-3, "point light, direct");
+        delivered += intensity * omega / PI;
+    }
+    assert_eq!(report.lights.len(), 1);
+    assert_eq!(report.lights[0].kind, "point");
+    assert_eq!(
+        report.lights[0].rays_cast, 0,
+        "nothing can shadow a lone floor"
+    );
+    let energy = report.energy.as_ref().expect("energy");
+    assert!((energy.delivered[0] - delivered).abs() < 1e-6 * delivered);
+    assert!(energy.imbalance.iter().all(|&x| x < 1e-12), "{energy:?}");
+}
+
+#[test]
+fn spot_is_exact_inside_its_inner_cone_and_dark_outside_its_outer_cone() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (h, intensity) = (3.0, 200.0);
+    let (inner, outer) = (20f64.to_radians(), 30f64.to_radians());
+    let doc = scene(
+        &[(floor(), RHO)],
+        &[(
+            json!({ "type": "spot", "intensity": intensity,
+                    "spot": { "innerConeAngle": inner, "outerConeAngle": outer } }),
+            json!({ "translation": [0.0, h, 0.0], "rotation": aim([0.0, -1.0, 0.0]) }),
+        )],
+    );
+    let report = bake_report(dir.path(), &doc, &["--max-element-size", "0.25"]);
+    let (mut inside, mut outside, mut between) = (0, 0, 0);
+    for (e, r) in floor_elements(&report) {
+        let corners = [(r[0], r[2]), (r[1], r[2]), (r[1], r[3]), (r[0], r[3])];
+        let farthest = corners
+            .iter()
+            .map(|(x, z)| (x * x + z * z).sqrt())
+            .fold(0.0, f64::max);
+        // The nearest point of the square to the foot of the light (the origin).
+        let nx = 0f64.clamp(r[0], r[1]);
+        let nz = 0f64.clamp(r[2], r[3]);
+        let nearest = (nx * nx + nz * nz).sqrt();
+        if (farthest / h).atan() < inner * (1.0 - 1e-6) {
+            inside += 1;
+            let omega = rectangle_solid_angle(r, h);
+            let expected = RHO.map(|rho| rho * intensity * omega / (PI * e.area));
+            assert_relative(e.b, expected, 5e-3, "inside the inner cone");
+        } else if (nearest / h).atan() > outer * (1.0 + 1e-6) {
+            outside += 1;
+            assert_eq!(e.b, [0.0; 3], "outside the outer cone at {:?}", e.centroid);
+        } else {
+            between += 1;
+            assert!(e.b[0] >= 0.0);
+        }
+    }
+    assert!(
+        inside > 30 && outside > 1000 && between > 50,
+        "{inside} {outside} {between}"
+    );
+}
+
+#[test]
+fn sun_gives_every_element_rho_e_cos_over_pi() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let lux = 1000.0;
+    let n = (0.5f64 * 0.5 + 1.0).sqrt();
+    let d = [0.5 / n, -1.0 / n, 0.0];
+    let doc = scene(
+        &[(floor(), RHO)],
+        &[(
+            json!({ "type": "directional", "intensity": lux }),
+            json!({ "rotation": aim(d), "translation": [40.0, 50.0, -7.0] }),
+        )],
+    );
+    let report = bake_report(dir.path(), &doc, &[]);
+    let cos = -d[1];
+    let expected = RHO.map(|rho| rho * lux * cos / PI);
+    let elements = floor_elements(&report);
+    assert!(elements.len() >= 100);
+    for (e, _) in elements {
+        assert_relative(e.b, expected, 5e-3, "sun");
+    }
+    assert_eq!(report.lights[0].kind, "directional");
+}
+
+#[test]
+fn sun_shadow_of_a_black_square_is_its_exact_lit_share() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let lux = 1000.0;
+    let doc = scene(
+        &[(floor(), RHO), (black_square(), [0.0; 3])],
+        &[(
+            json!({ "type": "directional", "intensity": lux }),
+            json!({ "rotation": aim([0.0, -1.0, 0.0]) }),
+        )],
+    );
+    // Elements of 0.3 m: the square's edges at ±1 m cut through elements.
+    let report = bake_report(dir.path(), &doc, &["--max-element-size", "0.3"]);
+    let full = RHO.map(|rho| rho * lux / PI);
+    let (mut dark, mut partial, mut lit) = (0, 0, 0);
+    for (e, r) in floor_elements(&report) {
+        let overlap =
+            (r[1].min(1.0) - r[0].max(-1.0)).max(0.0) * (r[3].min(1.0) - r[2].max(-1.0)).max(0.0);
+        let share = 1.0 - overlap / ((r[1] - r[0]) * (r[3] - r[2]));
+        for c in 0..3 {
+            let expected = full[c] * share;
+            assert!(
+                (e.b[c] - expected).abs() <= 0.02 * full[c],
+                "element at {:?}: b {} vs {expected} (lit share {share})",
+                e.centroid,
+                e.b[c]
+            );
+        }
+        match share {
+            s if s == 0.0 => {
+                dark += 1;
+                assert_eq!(e.b, [0.0; 3], "wholly in shadow");
+            }
+            s if s == 1.0 => lit += 1,
+            _ => partial += 1,
+        }
+    }
+    assert!(
+        dark > 10 && partial > 10 && lit > 100,
+        "{dark} {partial} {lit}"
+    );
+    assert!(report.lights[0].elements_clipped > 0);
+    assert_eq!(
+        report.lights[0].rays_cast, 0,
+        "directional shadows are clipped, not sampled"
+    );
+}
+
+/// The 6 inward-facing faces of the box [0, 2] × [0, 1.5] × [0, 1] as triangles.
+fn closed_box() -> Vec<[f32; 3]> {
+    let (x, y, z) = (2.0f32, 1.5f32, 1.0f32);
+    let p = |i: usize| {
+        [
+            if i & 1 == 1 { x } else { 0.0 },
+            if i & 2 == 2 { y } else { 0.0 },
+            if i & 4 == 4 { z } else { 0.0 },
+        ]
+    };
+    // Quads (CCW seen from inside).
+    let quads = [
+        [0, 1, 3, 2], // z = 0, normal +z
+        [4, 6, 7, 5], // z = 1, normal −z
+        [0, 2, 6, 4], // x = 0, normal +x
+        [1, 5, 7, 3], // x = 2, normal −x
+        [0, 4, 5, 1], // y = 0, normal +y
+        [2, 3, 7, 6], // y = 1.5, normal −y
+    ];
+    let mut out = Vec::new();
+    for q in quads {
+        out.extend([p(q[0]), p(q[1]), p(q[2]), p(q[0]), p(q[2]), p(q[3])]);
+    }
+    out
+}
+
+#[test]
+fn closed_box_lit_by_a_point_light_balances_energy() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let doc = scene(
+        &[(closed_box(), [0.7, 0.5, 0.2])],
+        &[(
+            json!({ "type": "point", "intensity": 50.0, "color": [1.0, 0.8, 0.6] }),
+            json!({ "translation": [0.6, 1.1, 0.3] }),
+        )],
+    );
+    let report = bake_report(dir.path(), &doc, &[]);
+    let energy = report.energy.as_ref().expect("energy");
+    for c in 0..3 {
+        assert!(energy.imbalance[c] < 1e-9, "band {c}: {energy:?}");
+        // A closed box: everything that enters is absorbed, and the light delivers its whole
+        // flux 4π I / π = 4 I per band (in b × area).
+        let flux = 4.0 * 50.0 * f64::from([1.0f32, 0.8, 0.6][c]);
+        assert!(
+            (energy.delivered[c] - flux).abs() < 1e-9 * flux,
+            "{energy:?}"
+        );
+        // Nothing escapes but the default estimator's row-sum error (auto, 1e-3 per pair).
+        assert!(energy.escaped[c].abs() < 1e-5 * flux, "{energy:?}");
+    }
+    assert!(report
+        .elements
+        .iter()
+        .all(|e| e.b.iter().all(|v| v.is_finite() && *v > 0.0)));
+}
+
+#[test]
+fn unusable_lights_are_skipped_with_a_warning_and_obj_has_none() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let doc = scene(
+        &[(floor(), RHO)],
+        &[
+            (
+                json!({ "type": "point", "intensity": 10.0 }),
+                json!({ "translation": [0.0, 1.0, 0.0], "scale": [0.0, 1.0, 1.0] }),
+            ),
+            (
+                json!({ "type": "point", "intensity": -3.0 }),
+                json!({ "translation": [0.0, 1.0, 0.0] }),
+            ),
+            (
+                json!({ "type": "point", "intensity": 10.0 }),
+                json!({ "translation": [0.0, 1.0, 0.0] }),
+            ),
+        ],
+    );
+    let report = bake_report(dir.path(), &doc, &[]);
+    assert_eq!(report.lights.len(), 1, "only the usable light");
+    assert_eq!(report.lights[0].node, 3);
+    let skipped: Vec<&String> = report
+        .warnings
+        .iter()
+        .filter(|w| w.contains("skipped"))
+        .collect();
+    assert_eq!(skipped.len(), 2, "{:?}", report.warnings);
+    assert!(skipped[0].contains("singular"), "{skipped:?}");
+    assert!(skipped[1].contains("intensity"), "{skipped:?}");
+}
