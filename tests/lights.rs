@@ -399,3 +399,160 @@ fn unusable_lights_are_skipped_with_a_warning_and_obj_has_none() {
     assert!(skipped[0].contains("singular"), "{skipped:?}");
     assert!(skipped[1].contains("intensity"), "{skipped:?}");
 }
+
+// ---- a room made by Blender's own glTF exporter ----
+
+fn tools_dir() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tools")
+}
+
+fn blender_installed() -> bool {
+    std::process::Command::new("blender")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+fn validator_available() -> bool {
+    tools_dir()
+        .join(".validator/node_modules/gltf-validator/package.json")
+        .is_file()
+        && std::process::Command::new("node")
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success())
+}
+
+fn required(variable: &str) -> bool {
+    std::env::var(variable).is_ok_and(|v| v == "1")
+}
+
+/// `tools/blender-room` (walls, a table, a 500 W point light and an 800 W spot, exported with
+/// `export_lights`) bakes with exit 0; the brightest floor element is within 1.2 m of the
+/// spot's foot; `--exposure auto` keeps COLOR_0 out of saturation; the outputs are
+/// validator-clean; the lightmap bake carries the lights only with `--keep-lights`.
+#[test]
+fn blender_room_with_point_and_spot_lights_bakes() {
+    if !blender_installed() {
+        assert!(
+            !required("BAKE_REQUIRE_BLENDER"),
+            "BAKE_REQUIRE_BLENDER=1 but blender is not installed (tools/ci-clients --blender)"
+        );
+        eprintln!("skipped: blender not installed (tools/ci-clients --blender installs it)");
+        return;
+    }
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let room = dir.path().join("room.gltf");
+    let made = std::process::Command::new(tools_dir().join("blender-room"))
+        .arg(&room)
+        .output()
+        .expect("run tools/blender-room");
+    let stdout = String::from_utf8_lossy(&made.stdout);
+    assert!(made.status.success(), "blender-room failed:\n{stdout}");
+    let facts: Value = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("BLENDER_ROOM "))
+        .and_then(|l| serde_json::from_str(l).ok())
+        .expect("a BLENDER_ROOM line");
+    let foot: Vec<f64> = facts["spot_foot"]
+        .as_array()
+        .expect("spot_foot")
+        .iter()
+        .filter_map(Value::as_f64)
+        .collect();
+
+    let out = dir.path().join("out.gltf");
+    let report_path = dir.path().join("report.json");
+    let run = bake([
+        room.as_os_str(),
+        out.as_os_str(),
+        "--exposure".as_ref(),
+        "auto".as_ref(),
+        "--report".as_ref(),
+        report_path.as_os_str(),
+    ])
+    .success();
+    assert!(run.stderr.contains("exposure auto"), "{}", run.stderr);
+    let report = exporter::report::read_report(&report_path).expect("the report");
+    let kinds: Vec<&str> = report.lights.iter().map(|l| l.kind.as_str()).collect();
+    assert_eq!(kinds, ["point", "spot"]);
+    let floor = report
+        .elements
+        .iter()
+        .filter(|e| e.normal[1] > 0.9 && e.centroid[1].abs() < 1e-6)
+        .max_by(|a, b| a.b[0].total_cmp(&b.b[0]))
+        .expect("floor elements");
+    let distance =
+        ((floor.centroid[0] - foot[0]).powi(2) + (floor.centroid[2] - foot[2]).powi(2)).sqrt();
+    assert!(
+        distance <= 1.2,
+        "brightest floor element at {:?}, {distance:.2} m from the spot's foot {foot:?}",
+        floor.centroid
+    );
+    let energy = report.energy.as_ref().expect("energy");
+    assert!(energy.imbalance.iter().all(|&x| x < 1e-9), "{energy:?}");
+
+    // COLOR_0 under --exposure auto: at most ~1% of the vertices clipped, none black overall.
+    let (document, buffers, _) = gltf::import(&out).expect("read the bake");
+    let (mut vertices, mut saturated, mut brightest) = (0usize, 0usize, 0f32);
+    for mesh in document.meshes() {
+        for primitive in mesh.primitives() {
+            let reader = primitive.reader(|b| Some(&buffers[b.index()]));
+            let colors = reader.read_colors(0).expect("COLOR_0").into_rgb_f32();
+            for c in colors {
+                vertices += 1;
+                saturated += usize::from(c.iter().any(|&v| v >= 1.0));
+                brightest = brightest.max(c[0].max(c[1]).max(c[2]));
+            }
+        }
+    }
+    assert!(
+        saturated * 50 <= vertices,
+        "{saturated} of {vertices} vertices saturated"
+    );
+    assert!(brightest > 0.5, "brightest COLOR_0 {brightest}");
+
+    // Lights in the lightmap bake only when asked for.
+    let lights_in = |path: &Path| -> usize {
+        let text = std::fs::read_to_string(path).expect("read glTF");
+        let json: Value = serde_json::from_str(&text).expect("glTF JSON");
+        json["extensions"]["KHR_lights_punctual"]["lights"]
+            .as_array()
+            .map_or(0, Vec::len)
+    };
+    let lightmap = dir.path().join("out.lightmap.gltf");
+    assert_eq!(lights_in(&lightmap), 0);
+    let kept = dir.path().join("kept.gltf");
+    bake([
+        "--quiet".as_ref(),
+        "--target".as_ref(),
+        "lightmap".as_ref(),
+        "--keep-lights".as_ref(),
+        room.as_os_str(),
+        kept.as_os_str(),
+    ])
+    .success();
+    assert_eq!(lights_in(&kept), 2);
+
+    if !validator_available() {
+        assert!(
+            !required("BAKE_REQUIRE_VALIDATOR"),
+            "BAKE_REQUIRE_VALIDATOR=1 but the validator is not installed"
+        );
+        eprintln!("skipped: validator not installed (run tools/install-validator)");
+        return;
+    }
+    let files = [out, lightmap, kept];
+    let output = std::process::Command::new("node")
+        .arg(tools_dir().join("validate.mjs"))
+        .args(&files)
+        .output()
+        .expect("run node tools/validate.mjs");
+    let text = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "errors or warnings:\n{text}");
+    let clean = text
+        .lines()
+        .filter(|l| l.contains(": 0 errors, 0 warnings, "))
+        .count();
+    assert_eq!(clean, files.len(), "{text}");
+}
