@@ -175,7 +175,7 @@ fn solve_group<O: Operator + ?Sized>(
             .zip(s)
             .map(|(r, s)| 1.0 + r[band] * s.abs())
             .fold(0.0f64, f64::max),
-        eta: operator_error(rho, s, band, op.accuracy()),
+        eta: operator_error(rho, s, band, op.accuracy(), op.rows_bounded()),
     };
     let mut solutions = Vec::with_capacity(rhs_bands.len());
     for bands in rhs_bands {

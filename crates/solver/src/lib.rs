@@ -111,6 +111,15 @@ pub trait Operator: Sync {
     fn accuracy(&self) -> f64 {
         0.0
     }
+
+    /// Whether a row of `F` that sums above 1 is integration error (eq. 15: `Σ_j F_ij ≤ 1`
+    /// for form factors integrated per element pair, as in a dense matrix): then the excess
+    /// enters `η`. An operator that hands each element its ancestor node's average (a
+    /// hierarchy) has single rows above 1 by its discretisation error while its area-weighted
+    /// sums stay exact; it returns false and only [`Operator::accuracy`] enters `η`.
+    fn rows_bounded(&self) -> bool {
+        true
+    }
 }
 
 /// A dense `n × n` form-factor matrix borrowed as a row-major slice: `data[i * n + j] = F_ij`.
@@ -427,11 +436,23 @@ fn row_sums<O: Operator + ?Sized>(op: &O) -> Vec<f64> {
 /// operator. Physically `ρ_i s_i ≤ 1` (eq. 15: `s_i ≤ 1`), so a row reflecting more than all of
 /// its light is integration error of at least that size; `accuracy` is what the producer of `F`
 /// states about its row sums ([`Operator::accuracy`]).
-fn operator_error(rho: &[[f64; BANDS]], s: &[f64], c: usize, accuracy: f64) -> f64 {
+///
+/// For an operator whose rows are not bounded by 1 ([`Operator::rows_bounded`] false) only
+/// `max_i ρ_i · accuracy` enters.
+fn operator_error(
+    rho: &[[f64; BANDS]],
+    s: &[f64],
+    c: usize,
+    accuracy: f64,
+    rows_bounded: bool,
+) -> f64 {
     let excess = rho
         .iter()
         .zip(s)
-        .map(|(r, s)| (r[c] * s - 1.0).max(r[c] * accuracy))
+        .map(|(r, s)| {
+            let over = if rows_bounded { r[c] * s - 1.0 } else { 0.0 };
+            over.max(r[c] * accuracy)
+        })
         .fold(0.0f64, f64::max);
     (s.len() as f64 * f64::EPSILON).max(excess)
 }
@@ -576,7 +597,7 @@ fn solve_band_group(
             (x.col_as_slice(col), e_max)
         })
         .collect();
-    let eta = operator_error(rho, s, band, f.accuracy());
+    let eta = operator_error(rho, s, band, f.accuracy(), f.rows_bounded());
     let condition = checked_condition(
         band,
         infinity_norm(f, rho, band),

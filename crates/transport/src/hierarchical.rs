@@ -440,6 +440,12 @@ impl Operator for View<'_> {
     fn accuracy(&self) -> f64 {
         self.accuracy
     }
+
+    /// Elements get their ancestors' link averages: single rows may exceed 1 by the links'
+    /// receiver error (area-weighted sums are exact), which is not integration error.
+    fn rows_bounded(&self) -> bool {
+        false
+    }
 }
 
 impl Operator for HierarchicalTransport {
@@ -457,6 +463,12 @@ impl Operator for HierarchicalTransport {
 
     fn accuracy(&self) -> f64 {
         self.accuracy
+    }
+
+    /// Elements get their ancestors' link averages: single rows may exceed 1 by the links'
+    /// receiver error (area-weighted sums are exact), which is not integration error.
+    fn rows_bounded(&self) -> bool {
+        false
     }
 }
 
