@@ -556,3 +556,95 @@ fn blender_room_with_point_and_spot_lights_bakes() {
         .count();
     assert_eq!(clean, files.len(), "{text}");
 }
+
+#[test]
+fn range_window_darkens_smoothly_and_ends_exactly_at_the_range() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (h, intensity, range) = (2.0, 100.0, 3.0);
+    let doc = scene(
+        &[(floor(), RHO)],
+        &[(
+            json!({ "type": "point", "intensity": intensity, "range": range }),
+            json!({ "translation": [0.0, h, 0.0] }),
+        )],
+    );
+    let report = bake_report(dir.path(), &doc, &["--max-element-size", "0.25"]);
+    let (mut beyond, mut within) = (0, 0);
+    for (e, r) in floor_elements(&report) {
+        let nx = 0f64.clamp(r[0], r[1]);
+        let nz = 0f64.clamp(r[2], r[3]);
+        let nearest = (nx * nx + nz * nz + h * h).sqrt();
+        let unranged = RHO[0] * intensity * rectangle_solid_angle(r, h) / (PI * e.area);
+        if nearest >= range {
+            beyond += 1;
+            assert_eq!(e.b, [0.0; 3], "beyond the range at {:?}", e.centroid);
+            continue;
+        }
+        within += 1;
+        // KHR_lights_punctual's window max(min(1 − (d/range)⁴, 1), 0) between the element's
+        // nearest and farthest distances.
+        let far = [(r[0], r[2]), (r[1], r[2]), (r[1], r[3]), (r[0], r[3])]
+            .iter()
+            .map(|(x, z)| (x * x + z * z + h * h).sqrt())
+            .fold(0.0, f64::max);
+        let window = |d: f64| (1.0 - (d / range).powi(4)).clamp(0.0, 1.0);
+        let (lo, hi) = (window(far) * unranged, window(nearest) * unranged);
+        assert!(
+            e.b[0] >= lo * (1.0 - 1e-9) && e.b[0] <= hi * (1.0 + 1e-9),
+            "b {} outside [{lo}, {hi}] at {:?}",
+            e.b[0],
+            e.centroid
+        );
+    }
+    assert!(beyond > 100 && within > 100, "{beyond} {within}");
+}
+
+#[test]
+fn shadowed_lights_give_the_same_bytes_for_one_and_two_threads() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    // The closed box with a black square hanging between a point light, a spot and the floor.
+    let mut square = black_square();
+    for p in &mut square {
+        *p = [p[0] * 0.2 + 1.0, 0.8, p[2] * 0.2 + 0.5];
+    }
+    let doc = scene(
+        &[(closed_box(), [0.7, 0.5, 0.2]), (square, [0.0; 3])],
+        &[
+            (
+                json!({ "type": "point", "intensity": 50.0 }),
+                json!({ "translation": [1.0, 1.3, 0.5] }),
+            ),
+            (
+                json!({ "type": "spot", "intensity": 80.0,
+                        "spot": { "innerConeAngle": 0.3, "outerConeAngle": 0.6 } }),
+                json!({ "translation": [0.9, 1.4, 0.4], "rotation": aim([0.0, -1.0, 0.0]) }),
+            ),
+        ],
+    );
+    let input = dir.path().join("in.gltf");
+    write_json(&input, &doc);
+    let mut outputs = Vec::new();
+    for threads in ["1", "2"] {
+        let out = dir.path().join(format!("out{threads}.glb"));
+        let report = dir.path().join(format!("r{threads}.json"));
+        bake([
+            "--quiet".as_ref(),
+            "--threads".as_ref(),
+            threads.as_ref(),
+            input.as_os_str(),
+            out.as_os_str(),
+            "--report".as_ref(),
+            report.as_os_str(),
+        ])
+        .success();
+        let report = common::report_without_timings(&report);
+        outputs.push((std::fs::read(&out).expect("read the bake"), report));
+    }
+    assert!(
+        outputs[0].1.lights.iter().all(|l| l.rays_cast > 0),
+        "rays were cast"
+    );
+    assert_eq!(outputs[0].0, outputs[1].0, "same bytes");
+    assert_eq!(outputs[0].1.elements, outputs[1].1.elements);
+    assert_eq!(outputs[0].1.lights, outputs[1].1.lights);
+}
