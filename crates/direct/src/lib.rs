@@ -652,6 +652,43 @@ mod tests {
         assert!((omega - 2.0 * std::f64::consts::PI).abs() < 1e-6);
     }
 
+    /// The spot falloff integrated over elements its cone edge crosses: FALLOFF_STRATA² cells
+    /// against 256² cells, the error relative to the element's unattenuated light I Ω / A.
+    #[test]
+    fn falloff_quadrature_of_straddling_elements_converges() {
+        let l = DVec3::new(0.0, 3.0, 0.0);
+        let cone = Cone::new(DVec3::NEG_Y, 20f64.to_radians(), 30f64.to_radians());
+        let integrate = |corners: &[DVec3], k: usize| {
+            let mut sum = 0.0;
+            for_each_cell(corners, k, |cell, centre, _| {
+                sum += cone.falloff((centre - l).normalize()) * solid_angle(l, cell);
+            });
+            sum
+        };
+        let mut worst = 0.0f64;
+        for i in 0..16 {
+            // 0.25 m squares along x from 0.9 m to 2.0 m: across the penumbra (1.09 … 1.73 m).
+            let x0 = 0.9 + 0.07 * i as f64;
+            let square = [
+                DVec3::new(x0, 0.0, 0.1),
+                DVec3::new(x0, 0.0, 0.35),
+                DVec3::new(x0 + 0.25, 0.0, 0.35),
+                DVec3::new(x0 + 0.25, 0.0, 0.1),
+            ];
+            let reference = integrate(&square, 256);
+            let coarse = integrate(&square, FALLOFF_STRATA);
+            // Relative to the element's light without falloff, I Ω / A: what it would get
+            // inside the inner cone.
+            let error = (coarse - reference).abs() / solid_angle(l, &square);
+            worst = worst.max(error);
+        }
+        // Measured: 5.1e-4 at worst (penumbra 0.9 … 1.7 m from the foot, 0.25 m elements).
+        assert!(
+            worst < 1e-3,
+            "worst error {worst:.2e} of the unattenuated light"
+        );
+    }
+
     #[test]
     fn cone_range_finds_the_closest_point_of_an_edge() {
         // Light at the origin looking along −y; a segment-like thin quad crossing in front of
