@@ -2,6 +2,10 @@
 //! mean illuminance over a rectangle (the corner-sum solid angle, independent of the baker's
 //! triangle fan), a spot inside and outside its cones, a sun's cos θ, a sun's exact shadow of a
 //! square, and the energy balance of a closed box lit only by a point light.
+//!
+//! The issue asked for 0.5% (closed forms) and 0.02 × ρE/π (the sun's shadow); the baker is
+//! exact there, so the bounds are 1e-6: what is left is the f32 rounding of the glTF's
+//! positions and rotations (measured below 1e-7).
 
 mod common;
 
@@ -180,7 +184,7 @@ fn point_light_over_a_floor_matches_the_solid_angle_closed_form() {
     for (e, r) in &elements {
         let omega = rectangle_solid_angle(shifted(*r, lx, lz), h);
         let expected = RHO.map(|rho| rho * intensity * omega / (PI * e.area));
-        assert_relative(e.b, expected, 5e-3, "point light");
+        assert_relative(e.b, expected, 1e-6, "point light");
         assert_relative(e.direct, expected, 5e-3, "point light, direct");
         delivered += intensity * omega / PI;
     }
@@ -224,7 +228,7 @@ fn spot_is_exact_inside_its_inner_cone_and_dark_outside_its_outer_cone() {
             inside += 1;
             let omega = rectangle_solid_angle(r, h);
             let expected = RHO.map(|rho| rho * intensity * omega / (PI * e.area));
-            assert_relative(e.b, expected, 5e-3, "inside the inner cone");
+            assert_relative(e.b, expected, 1e-6, "inside the inner cone");
         } else if (nearest / h).atan() > outer * (1.0 + 1e-6) {
             outside += 1;
             assert_eq!(e.b, [0.0; 3], "outside the outer cone at {:?}", e.centroid);
@@ -258,7 +262,7 @@ fn sun_gives_every_element_rho_e_cos_over_pi() {
     let elements = floor_elements(&report);
     assert!(elements.len() >= 100);
     for (e, _) in elements {
-        assert_relative(e.b, expected, 5e-3, "sun");
+        assert_relative(e.b, expected, 1e-6, "sun");
     }
     assert_eq!(report.lights[0].kind, "directional");
 }
@@ -282,22 +286,21 @@ fn sun_shadow_of_a_black_square_is_its_exact_lit_share() {
         let overlap =
             (r[1].min(1.0) - r[0].max(-1.0)).max(0.0) * (r[3].min(1.0) - r[2].max(-1.0)).max(0.0);
         let share = 1.0 - overlap / ((r[1] - r[0]) * (r[3] - r[2]));
-        for c in 0..3 {
-            let expected = full[c] * share;
+        for (b, full) in e.b.iter().zip(full) {
+            let expected = full * share;
             assert!(
-                (e.b[c] - expected).abs() <= 0.02 * full[c],
-                "element at {:?}: b {} vs {expected} (lit share {share})",
-                e.centroid,
-                e.b[c]
+                (b - expected).abs() <= 1e-6 * full,
+                "element at {:?}: b {b} vs {expected} (lit share {share})",
+                e.centroid
             );
         }
-        match share {
-            s if s == 0.0 => {
-                dark += 1;
-                assert_eq!(e.b, [0.0; 3], "wholly in shadow");
-            }
-            s if s == 1.0 => lit += 1,
-            _ => partial += 1,
+        if share == 0.0 {
+            dark += 1;
+            assert_eq!(e.b, [0.0; 3], "wholly in shadow");
+        } else if share == 1.0 {
+            lit += 1;
+        } else {
+            partial += 1;
         }
     }
     assert!(
