@@ -195,8 +195,11 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             .with_context(|| format!("cannot build the report {}", path.display()))
             .map_err(internal)?;
         report.options = options_json(cli, &bake, &settings, &scene, exposure);
-        for (entry, direct) in report.elements.iter_mut().zip(&bake.direct) {
-            entry.direct = *direct;
+        for (i, entry) in report.elements.iter_mut().enumerate() {
+            // ρ and e as the bake used them (textures averaged over the element).
+            entry.rho = bake.rho[i];
+            entry.e = bake.emission[i];
+            entry.direct = bake.direct[i];
         }
         report.lights = light_entries(&scene, &bake);
         let counts = &bake.counts;

@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{bake, data_uri, write_json};
+use common::{bake, bake_json, data_uri, write_json};
 use exporter::report::{ElementEntry, Report};
 use serde_json::{json, Value};
 use std::f64::consts::PI;
@@ -108,26 +108,6 @@ fn aim(d: [f64; 3]) -> [f64; 4] {
     [x / n, y / n, z / n, w / n]
 }
 
-/// Bakes `doc` (vertex target, report) with `args`; returns the report.
-fn bake_report(dir: &Path, doc: &Value, args: &[&str]) -> Report {
-    let input = dir.join("in.gltf");
-    write_json(&input, doc);
-    let out = dir.join("out.gltf");
-    let report = dir.join("report.json");
-    let mut all: Vec<&std::ffi::OsStr> = vec![
-        "--quiet".as_ref(),
-        "--target".as_ref(),
-        "vertex".as_ref(),
-        input.as_os_str(),
-        out.as_os_str(),
-        "--report".as_ref(),
-        report.as_os_str(),
-    ];
-    all.extend(args.iter().map(std::ffi::OsStr::new));
-    bake(all).success();
-    exporter::report::read_report(&report).expect("read the report")
-}
-
 /// The floor's elements, with their square's x and z bounds.
 fn floor_elements(report: &Report) -> Vec<(&ElementEntry, [f64; 4])> {
     report
@@ -177,7 +157,7 @@ fn point_light_over_a_floor_matches_the_solid_angle_closed_form() {
             json!({ "translation": [lx, h, lz] }),
         )],
     );
-    let report = bake_report(dir.path(), &doc, &[]);
+    let report = bake_json(dir.path(), "in", &doc, &[]);
     let elements = floor_elements(&report);
     assert!(elements.len() >= 100, "{} floor elements", elements.len());
     let mut delivered = 0.0;
@@ -212,7 +192,7 @@ fn spot_is_exact_inside_its_inner_cone_and_dark_outside_its_outer_cone() {
             json!({ "translation": [0.0, h, 0.0], "rotation": aim([0.0, -1.0, 0.0]) }),
         )],
     );
-    let report = bake_report(dir.path(), &doc, &["--max-element-size", "0.25"]);
+    let report = bake_json(dir.path(), "in", &doc, &["--max-element-size", "0.25"]);
     let (mut inside, mut outside, mut between) = (0, 0, 0);
     for (e, r) in floor_elements(&report) {
         let corners = [(r[0], r[2]), (r[1], r[2]), (r[1], r[3]), (r[0], r[3])];
@@ -256,7 +236,7 @@ fn sun_gives_every_element_rho_e_cos_over_pi() {
             json!({ "rotation": aim(d), "translation": [40.0, 50.0, -7.0] }),
         )],
     );
-    let report = bake_report(dir.path(), &doc, &[]);
+    let report = bake_json(dir.path(), "in", &doc, &[]);
     let cos = -d[1];
     let expected = RHO.map(|rho| rho * lux * cos / PI);
     let elements = floor_elements(&report);
@@ -279,7 +259,7 @@ fn sun_shadow_of_a_black_square_is_its_exact_lit_share() {
         )],
     );
     // Elements of 0.3 m: the square's edges at ±1 m cut through elements.
-    let report = bake_report(dir.path(), &doc, &["--max-element-size", "0.3"]);
+    let report = bake_json(dir.path(), "in", &doc, &["--max-element-size", "0.3"]);
     let full = RHO.map(|rho| rho * lux / PI);
     let (mut dark, mut partial, mut lit) = (0, 0, 0);
     for (e, r) in floor_elements(&report) {
@@ -350,7 +330,7 @@ fn closed_box_lit_by_a_point_light_balances_energy() {
             json!({ "translation": [0.6, 1.1, 0.3] }),
         )],
     );
-    let report = bake_report(dir.path(), &doc, &[]);
+    let report = bake_json(dir.path(), "in", &doc, &[]);
     let energy = report.energy.as_ref().expect("energy");
     for c in 0..3 {
         assert!(energy.imbalance[c] < 1e-9, "band {c}: {energy:?}");
@@ -390,7 +370,7 @@ fn unusable_lights_are_skipped_with_a_warning_and_obj_has_none() {
             ),
         ],
     );
-    let report = bake_report(dir.path(), &doc, &[]);
+    let report = bake_json(dir.path(), "in", &doc, &[]);
     assert_eq!(report.lights.len(), 1, "only the usable light");
     assert_eq!(report.lights[0].node, 3);
     let skipped: Vec<&String> = report
@@ -571,7 +551,7 @@ fn range_window_darkens_smoothly_and_ends_exactly_at_the_range() {
             json!({ "translation": [0.0, h, 0.0] }),
         )],
     );
-    let report = bake_report(dir.path(), &doc, &["--max-element-size", "0.25"]);
+    let report = bake_json(dir.path(), "in", &doc, &["--max-element-size", "0.25"]);
     let (mut beyond, mut within) = (0, 0);
     for (e, r) in floor_elements(&report) {
         let nx = 0f64.clamp(r[0], r[1]);

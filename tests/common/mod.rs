@@ -284,3 +284,24 @@ fn push(array: &mut Value, value: Value) -> usize {
     array.push(value);
     array.len() - 1
 }
+
+/// Writes `doc` as `dir/NAME.gltf`, bakes it (`--target vertex`, a report, `--quiet`, then
+/// `args`), asserts exit 0 and returns the report.
+pub fn bake_json(dir: &Path, name: &str, doc: &Value, args: &[&str]) -> exporter::report::Report {
+    let input = dir.join(format!("{name}.gltf"));
+    write_json(&input, doc);
+    let out = dir.join(format!("{name}-out.gltf"));
+    let report = dir.join(format!("{name}.json"));
+    let mut all: Vec<&OsStr> = vec![
+        "--quiet".as_ref(),
+        "--target".as_ref(),
+        "vertex".as_ref(),
+        input.as_os_str(),
+        out.as_os_str(),
+        "--report".as_ref(),
+        report.as_os_str(),
+    ];
+    all.extend(args.iter().map(OsStr::new));
+    bake(all).success();
+    exporter::report::read_report(&report).expect("read the report")
+}

@@ -445,13 +445,40 @@ pub fn available_memory() -> Option<u64> {
     Some(kib * 1024)
 }
 
-/// Per element: ρ and e of its polygon's material (the one place they are gathered).
+/// Per element: ρ and e of its polygon's material (the one place they are gathered): the
+/// factors, times the exact mean of `baseColorTexture` / `emissiveTexture` over the element's
+/// surface where the material has one (`texture::element_mean`).
 pub fn element_values(scene: &Scene, mesh: &ElementMesh) -> (Vec<[f64; BANDS]>, Vec<[f64; BANDS]>) {
+    use rayon::prelude::*;
     mesh.elements
-        .iter()
+        .par_iter()
         .map(|el| {
-            let m = &scene.materials[scene.polygons[el.polygon as usize].material];
-            (m.rho, m.emission)
+            let polygon = el.polygon as usize;
+            let m = &scene.materials[scene.polygons[polygon].material];
+            let uv = scene.uvs.get(polygon).and_then(Option::as_ref);
+            let textured = |factor: [f64; BANDS], reference: &Option<importer::TextureRef>| {
+                let (Some(reference), Some(uv)) = (reference, uv) else {
+                    return factor;
+                };
+                let Some(texture) = scene.textures.get(reference.texture) else {
+                    return factor;
+                };
+                let Some(image) = scene.images.get(texture.image) else {
+                    return factor;
+                };
+                let corners: Vec<glam::DVec3> = el
+                    .corner_indices()
+                    .iter()
+                    .map(|&k| mesh.vertices[k as usize])
+                    .collect();
+                let mean =
+                    texture::element_mean(uv, reference, texture, image, &corners, el.normal);
+                [0, 1, 2].map(|c| factor[c] * mean[c])
+            };
+            (
+                textured(m.rho, &m.base_color_texture),
+                textured(m.emission, &m.emissive_texture),
+            )
         })
         .unzip()
 }

@@ -12,7 +12,7 @@
 //!   from the light (∫ cos θ / r² dA = Ω), per triangle by Van Oosterom & Strackee (1983);
 //! - a directional light of illuminance E⊥ gives `E⊥ cos θ` times the element's lit share,
 //!   which is found exactly: the occluders are projected along the light onto the element's
-//!   plane, clipped to it, and the area of their union ([`clip::union_area`]) is subtracted.
+//!   plane, clipped to it, and the area of their union (`clip::union_area`) is subtracted.
 //!
 //! Sampled where none does: elements a spot's cone edge crosses, or inside a light's `range`
 //! window, are cut into k × k sub-cells of exact solid angle weighted by the falloff at their
@@ -23,8 +23,6 @@
 //! cone, behind a light, or beyond its range get exactly 0 and no rays.
 //!
 //! It is not the radiosity solver and knows nothing of form factors, links or presets.
-
-pub mod clip;
 
 use glam::{DVec2, DVec3};
 use importer::{Light, LightKind};

@@ -26,6 +26,19 @@ pub(crate) fn read_vec3(root: &Root, buffers: &[Data], index: usize) -> Result<V
         .collect())
 }
 
+/// Reads a VEC2 accessor (texture coordinates: float, or normalized unsigned byte/short).
+pub(crate) fn read_vec2(
+    root: &Root,
+    buffers: &[Data],
+    index: usize,
+) -> Result<Vec<glam::DVec2>, String> {
+    let values = read_components(root, buffers, index, Type::Vec2)?;
+    Ok(values
+        .chunks_exact(2)
+        .map(|c| glam::DVec2::new(c[0], c[1]))
+        .collect())
+}
+
 /// Reads an index accessor: SCALAR, unsigned byte/short/int, not normalized.
 pub(crate) fn read_indices(
     root: &Root,

@@ -43,7 +43,7 @@ pub(crate) fn load_bytes(bytes: &[u8], base: Option<&Path>) -> Result<Scene, Imp
     }
     let buffers = gltf::import_buffers(&document, base, blob.map(<[u8]>::to_vec))
         .map_err(|e| buffer_error(&document, base, &e))?;
-    build_scene(&document, &buffers)
+    build_scene(&document, &buffers, base)
 }
 
 /// Splits a GLB container (glTF 2.0, "GLB File Format": 12-byte header, JSON chunk,
@@ -236,6 +236,11 @@ fn check_buffer_files(document: &gltf::Document, base: &Path) -> Result<(), Impo
     Ok(())
 }
 
+/// A relative URI's file name, percent-decoded.
+pub(crate) fn percent_decoded_path(uri: &str) -> std::path::PathBuf {
+    std::path::PathBuf::from(String::from_utf8_lossy(&percent_decode(uri)).into_owned())
+}
+
 /// RFC 3986 percent-decoding; malformed escapes are kept literally.
 fn percent_decode(text: &str) -> Vec<u8> {
     let bytes = text.as_bytes();
@@ -268,6 +273,8 @@ fn default_material() -> Material {
         rho: [1.0; 3],
         emission: [0.0; 3],
         double_sided: false,
+        base_color_texture: None,
+        emissive_texture: None,
     }
 }
 
@@ -275,6 +282,7 @@ fn default_material() -> Material {
 fn build_scene(
     document: &gltf::Document,
     buffers: &[gltf::buffer::Data],
+    base: Option<&Path>,
 ) -> Result<Scene, ImportError> {
     let root = document.as_json();
     let nodes = read_nodes(root)?;
@@ -368,14 +376,73 @@ fn build_scene(
     if polygons.is_empty() {
         return Err(ImportError::Empty);
     }
+    let (textures, images) = crate::texture::load(root, buffers, base, &mut materials, &checked)?;
+    let uvs = polygon_uvs(&polygons, &materials, &layout, &cache)?;
     Ok(Scene {
         polygons,
         materials,
         lights,
+        textures,
+        images,
+        uvs,
         layout,
         stats,
         warnings,
     })
+}
+
+/// Per polygon whose material has a texture: the source triangles it was made of, in world
+/// space, with their texture coordinates. A glTF polygon is source triangle `face`, or the
+/// quad merged from `face` and `face + 1`.
+fn polygon_uvs(
+    polygons: &[crate::Polygon],
+    materials: &[Material],
+    layout: &Layout,
+    cache: &HashMap<(usize, usize), Option<LocalPrimitive>>,
+) -> Result<Vec<Option<crate::PolygonUv>>, ImportError> {
+    polygons
+        .iter()
+        .map(|p| {
+            let material = &materials[p.material];
+            let sets: Vec<u32> = [&material.base_color_texture, &material.emissive_texture]
+                .iter()
+                .filter_map(|t| t.as_ref().map(|t| t.tex_coord))
+                .collect();
+            if sets.is_empty() {
+                return Ok(None);
+            }
+            let o = p.origin;
+            let local = cache
+                .get(&(o.mesh, o.primitive))
+                .and_then(Option::as_ref)
+                .ok_or_else(|| ImportError::Gltf(format!("mesh {} lost its primitive", o.mesh)))?;
+            let world = layout.nodes[o.node].world;
+            let count = if p.vertices.len() == 4 { 2 } else { 1 };
+            let mut triangles = Vec::with_capacity(count);
+            for f in o.face..o.face + count {
+                let Some(t) = local.triangles.get(f) else {
+                    break;
+                };
+                let positions = t.map(|i| world.transform_point3(local.positions[i as usize]));
+                let mut uv = [[glam::DVec2::ZERO; 3]; 2];
+                for &set in &sets {
+                    let values = local
+                        .uvs
+                        .get(set as usize)
+                        .and_then(Option::as_ref)
+                        .ok_or_else(|| ImportError::InvalidValue {
+                            what: format!("mesh {} primitive {}", o.mesh, o.primitive),
+                            problem: format!(
+                                "its material is textured but TEXCOORD_{set} is missing or unreadable"
+                            ),
+                        })?;
+                    uv[set as usize] = t.map(|i| values[i as usize]);
+                }
+                triangles.push(crate::UvTriangle { positions, uv });
+            }
+            Ok(Some(crate::PolygonUv { triangles }))
+        })
+        .collect()
 }
 
 /// Whether a node's mesh can be baked in place. A singular world matrix (a scale of 0
@@ -527,6 +594,8 @@ fn read_materials(document: &gltf::Document) -> (Vec<Material>, impl Fn(Option<u
                 // `+ 0.0` turns a 0 × negative strength (−0) into 0.
                 emission: emissive.map(|e| f64::from(e) * strength + 0.0),
                 double_sided: m.double_sided(),
+                base_color_texture: None,
+                emissive_texture: None,
             }
         })
         .collect();
@@ -701,6 +770,8 @@ fn nodes_to_bake(root: &Root, layout: &Layout) -> Result<Vec<usize>, ImportError
 struct LocalPrimitive {
     positions: Vec<DVec3>,
     triangles: Vec<[u32; 3]>,
+    /// TEXCOORD_0 and TEXCOORD_1, where present.
+    uvs: Vec<Option<Vec<glam::DVec2>>>,
 }
 
 impl LocalPrimitive {
@@ -773,9 +844,21 @@ fn read_primitive(
             positions.len()
         )));
     }
+    // TEXCOORD_0 and _1 (for textures; a set that cannot be read is left out, and a texture
+    // that needs it is then refused where it is used).
+    let uvs = (0..2)
+        .map(|set| {
+            primitive
+                .attributes
+                .get(&Checked::Valid(Semantic::TexCoords(set)))
+                .and_then(|a| accessor::read_vec2(root, buffers, a.value()).ok())
+                .filter(|uv| uv.len() == positions.len())
+        })
+        .collect();
     Ok(Some(LocalPrimitive {
         positions,
         triangles: triangles(mode, &indices),
+        uvs,
     }))
 }
 

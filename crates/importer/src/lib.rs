@@ -19,6 +19,9 @@ mod accessor;
 mod gltf_in;
 mod obj_in;
 mod polygon;
+pub mod texture;
+
+pub use texture::{Image, Texture, TextureRef, Wrap};
 
 /// Where a polygon came from, so its results can be written back.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -67,6 +70,25 @@ pub struct Material {
     pub emission: [f64; 3],
     /// Both sides of every face are surfaces (glTF `doubleSided`).
     pub double_sided: bool,
+    /// `baseColorTexture`: ρ is `rho` × the texture's mean over each element.
+    pub base_color_texture: Option<TextureRef>,
+    /// `emissiveTexture`: e is `emission` × the texture's mean over each element.
+    pub emissive_texture: Option<TextureRef>,
+}
+
+/// One source triangle of a textured polygon: world positions and, per TEXCOORD set (0, 1),
+/// its corners' texture coordinates.
+#[derive(Clone, Debug, PartialEq)]
+pub struct UvTriangle {
+    pub positions: [DVec3; 3],
+    pub uv: [[glam::DVec2; 3]; 2],
+}
+
+/// How a textured polygon maps to texture space: the source triangles that cover it (1, or 2
+/// for a quad merged from two triangles), each affine.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PolygonUv {
+    pub triangles: Vec<UvTriangle>,
 }
 
 /// A node of the input hierarchy, kept so the output has the same structure.
@@ -202,6 +224,11 @@ pub struct Scene {
     pub materials: Vec<Material>,
     /// Punctual lights of the baked nodes, in node order (empty for OBJ).
     pub lights: Vec<Light>,
+    /// Textures referenced by materials in use, and their decoded images.
+    pub textures: Vec<Texture>,
+    pub images: Vec<Image>,
+    /// Per polygon: its texture mapping when its material is textured.
+    pub uvs: Vec<Option<PolygonUv>>,
     pub layout: Layout,
     pub stats: ImportStats,
     /// One line per thing the user should know about (dropped faces, skipped primitives).

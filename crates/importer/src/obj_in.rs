@@ -295,6 +295,8 @@ fn convert_material(m: &tobj::Material) -> Material {
         rho: m.diffuse.map_or([DEFAULT_RHO; 3], |d| d.map(f64::from)),
         emission: m.emissive.map_or([0.0; 3], |e| e.map(f64::from)),
         double_sided: false,
+        base_color_texture: None,
+        emissive_texture: None,
     }
 }
 
@@ -305,6 +307,8 @@ fn default_material() -> Material {
         rho: [DEFAULT_RHO; 3],
         emission: [0.0; 3],
         double_sided: false,
+        base_color_texture: None,
+        emissive_texture: None,
     }
 }
 
@@ -399,10 +403,14 @@ fn build_scene(
     if polygons.is_empty() {
         return Err(ImportError::Empty);
     }
+    let polygon_count = polygons.len();
     Ok(Scene {
         polygons,
         materials,
         lights: Vec::new(),
+        textures: Vec::new(),
+        images: Vec::new(),
+        uvs: vec![None; polygon_count],
         layout,
         stats,
         warnings,

@@ -49,10 +49,14 @@ pub fn fixture() -> Fixture {
             [0.2 + 0.15 * k, 1.5 - 0.1 * k, 0.05 * k * k]
         })
         .collect();
+    let polygon_count = polygons.len();
     let scene = Scene {
         polygons,
         materials: materials(),
         lights: Vec::new(),
+        textures: Vec::new(),
+        images: Vec::new(),
+        uvs: vec![None; polygon_count],
         layout,
         stats: ImportStats {
             faces_read: 12,
@@ -79,12 +83,16 @@ fn materials() -> Vec<Material> {
             rho: [0.8, 0.5, 0.3],
             emission: [0.0; 3],
             double_sided: false,
+            base_color_texture: None,
+            emissive_texture: None,
         },
         Material {
             name: Some("panel".into()),
             rho: [0.5; 3],
             emission: [1.0, 0.9, 0.8],
             double_sided: true,
+            base_color_texture: None,
+            emissive_texture: None,
         },
     ]
 }

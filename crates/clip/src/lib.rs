@@ -5,7 +5,8 @@
 //! projections along the light direction onto that plane are convex polygons, and its lit
 //! share is `1 − area(element ∩ ∪ projections) / area(element)`. [`clip_convex`] cuts each
 //! projection down to the element, and [`union_area`] measures the union of the pieces
-//! exactly (no sampling), however they overlap.
+//! exactly (no sampling), however they overlap. The same clipping cuts an element's image in
+//! texture space into texel cells for exact texture averages (`bake-texture`).
 //!
 //! It is not a general polygon boolean library: clip polygons must be convex, the union is
 //! measured, never built as a polygon, and nothing here knows about 3D, lights or

@@ -1,0 +1,353 @@
+//! Textures of the materials in use (glTF `baseColorTexture`, `emissiveTexture`): decoded with
+//! the `image` crate (PNG, JPEG) from a buffer view, a `data:` URI or a file beside the input,
+//! sRGB-decoded to linear, with their sampler's wrap modes and magnification filter and the
+//! `KHR_texture_transform` of the material's reference.
+//!
+//! Read straight from the JSON with bounds-checked lookups: the importer's validation does not
+//! check texture, image and sampler objects (it never needed them), so nothing here may trust
+//! an index.
+
+use crate::{ImportError, Material};
+use glam::DVec2;
+use gltf::json::validation::Checked;
+use gltf::json::Root;
+use std::collections::HashMap;
+use std::path::Path;
+
+/// A decoded image: linear RGB per texel, row-major, the first row at v = 0 (glTF's UV origin
+/// is the image's top-left corner).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<[f32; 3]>,
+}
+
+/// How texture coordinates outside [0, 1] wrap (glTF sampler `wrapS`/`wrapT`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wrap {
+    Repeat,
+    ClampToEdge,
+    MirroredRepeat,
+}
+
+/// A glTF texture: an image and how it is sampled.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Texture {
+    /// Names the texture in messages.
+    pub name: String,
+    /// Index into [`crate::Scene::images`].
+    pub image: usize,
+    /// `wrapS`, `wrapT`.
+    pub wrap: [Wrap; 2],
+    /// Magnification filter `NEAREST` (else linear, the default).
+    pub nearest: bool,
+}
+
+/// A material's use of a texture.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TextureRef {
+    /// Index into [`crate::Scene::textures`].
+    pub texture: usize,
+    /// Which `TEXCOORD_n` set (after `KHR_texture_transform`'s override).
+    pub tex_coord: u32,
+    /// `KHR_texture_transform` as a 2 × 3 matrix: uv' = M (u, v, 1) = T R S (u, v, 1).
+    pub transform: [[f64; 3]; 2],
+}
+
+impl TextureRef {
+    /// The transformed coordinates of `uv`.
+    pub fn apply(&self, uv: DVec2) -> DVec2 {
+        let m = &self.transform;
+        DVec2::new(
+            m[0][0] * uv.x + m[0][1] * uv.y + m[0][2],
+            m[1][0] * uv.x + m[1][1] * uv.y + m[1][2],
+        )
+    }
+}
+
+/// The texture references of glTF material `m` (JSON), before decoding: (base colour,
+/// emissive) as (texture index in the file, TEXCOORD set, transform).
+/// A material's reference to a texture of the file: its index, TEXCOORD set and transform.
+type Reference = (usize, u32, [[f64; 3]; 2]);
+
+pub(crate) fn references(root: &Root, m: usize) -> [Option<Reference>; 2] {
+    let Some(material) = root.materials.get(m) else {
+        return [None, None];
+    };
+    let info = |i: &gltf::json::texture::Info| {
+        let transform = i
+            .extensions
+            .as_ref()
+            .and_then(|e| e.texture_transform.as_ref());
+        let (matrix, set) = match transform {
+            Some(t) => {
+                // KHR_texture_transform: T · R · S with R = [[cos, sin], [−sin, cos]].
+                let [ox, oy] = t.offset.0.map(f64::from);
+                let r = f64::from(t.rotation.0);
+                let [sx, sy] = t.scale.0.map(f64::from);
+                let (s, c) = r.sin_cos();
+                (
+                    [[c * sx, s * sy, ox], [-s * sx, c * sy, oy]],
+                    t.tex_coord.unwrap_or(i.tex_coord),
+                )
+            }
+            None => ([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], i.tex_coord),
+        };
+        (i.index.value(), set, matrix)
+    };
+    [
+        material
+            .pbr_metallic_roughness
+            .base_color_texture
+            .as_ref()
+            .map(info),
+        material.emissive_texture.as_ref().map(info),
+    ]
+}
+
+/// Decodes every texture the materials in use reference and fills in their
+/// [`Material::base_color_texture`] / [`Material::emissive_texture`]. `used[m]`: material m is
+/// used by a baked primitive. A texture that cannot be read is an error naming it.
+pub(crate) fn load(
+    root: &Root,
+    buffers: &[gltf::buffer::Data],
+    base: Option<&Path>,
+    materials: &mut [Material],
+    used: &[bool],
+) -> Result<(Vec<Texture>, Vec<Image>), ImportError> {
+    let mut textures = Vec::new();
+    let mut images = Vec::new();
+    let mut texture_of: HashMap<usize, usize> = HashMap::new();
+    let mut image_of: HashMap<usize, usize> = HashMap::new();
+    for (m, material) in materials.iter_mut().enumerate() {
+        if !used.get(m).copied().unwrap_or(false) {
+            continue;
+        }
+        let [base_color, emissive] = references(root, m);
+        for (slot, reference) in [
+            (&mut material.base_color_texture, base_color),
+            (&mut material.emissive_texture, emissive),
+        ] {
+            let Some((t, tex_coord, transform)) = reference else {
+                continue;
+            };
+            let texture = match texture_of.get(&t) {
+                Some(&k) => k,
+                None => {
+                    let made = read_texture(root, buffers, base, t, &mut images, &mut image_of)?;
+                    textures.push(made);
+                    texture_of.insert(t, textures.len() - 1);
+                    textures.len() - 1
+                }
+            };
+            *slot = Some(TextureRef {
+                texture,
+                tex_coord,
+                transform,
+            });
+        }
+    }
+    Ok((textures, images))
+}
+
+fn read_texture(
+    root: &Root,
+    buffers: &[gltf::buffer::Data],
+    base: Option<&Path>,
+    t: usize,
+    images: &mut Vec<Image>,
+    image_of: &mut HashMap<usize, usize>,
+) -> Result<Texture, ImportError> {
+    let json = root
+        .textures
+        .get(t)
+        .ok_or_else(|| ImportError::Gltf(format!("texture {t} does not exist")))?;
+    let name = crate::describe("texture", json.name.as_deref(), t);
+    let fail = |problem: String| ImportError::InvalidValue {
+        what: name.clone(),
+        problem,
+    };
+    let (wrap, nearest) = match json.sampler.map(|s| s.value()) {
+        None => ([Wrap::Repeat; 2], false),
+        Some(s) => {
+            let sampler = root
+                .samplers
+                .get(s)
+                .ok_or_else(|| fail(format!("sampler {s} does not exist")))?;
+            let wrap = |w: &Checked<gltf::json::texture::WrappingMode>| {
+                use gltf::json::texture::WrappingMode as W;
+                match w {
+                    Checked::Valid(W::ClampToEdge) => Wrap::ClampToEdge,
+                    Checked::Valid(W::MirroredRepeat) => Wrap::MirroredRepeat,
+                    _ => Wrap::Repeat,
+                }
+            };
+            let nearest = matches!(
+                sampler.mag_filter,
+                Some(Checked::Valid(gltf::json::texture::MagFilter::Nearest))
+            );
+            ([wrap(&sampler.wrap_s), wrap(&sampler.wrap_t)], nearest)
+        }
+    };
+    let source = json.source.value();
+    let image = match image_of.get(&source) {
+        Some(&k) => k,
+        None => {
+            let decoded = decode_image(root, buffers, base, source).map_err(fail)?;
+            images.push(decoded);
+            image_of.insert(source, images.len() - 1);
+            images.len() - 1
+        }
+    };
+    Ok(Texture {
+        name,
+        image,
+        wrap,
+        nearest,
+    })
+}
+
+/// The largest image accepted (texels): a memory guard against a hostile header.
+const MAX_TEXELS: u64 = 1 << 28;
+
+fn decode_image(
+    root: &Root,
+    buffers: &[gltf::buffer::Data],
+    base: Option<&Path>,
+    source: usize,
+) -> Result<Image, String> {
+    let json = root
+        .images
+        .get(source)
+        .ok_or_else(|| format!("image {source} does not exist"))?;
+    let owned;
+    let bytes: &[u8] = match (&json.buffer_view, &json.uri) {
+        (Some(view), _) => {
+            let view = root
+                .buffer_views
+                .get(view.value())
+                .ok_or_else(|| format!("image {source}: its buffer view does not exist"))?;
+            let buffer = buffers
+                .get(view.buffer.value())
+                .ok_or_else(|| format!("image {source}: its buffer does not exist"))?;
+            let start = view.byte_offset.map_or(0, |o| o.0 as usize);
+            let end = start
+                .checked_add(view.byte_length.0 as usize)
+                .ok_or_else(|| format!("image {source}: buffer view out of range"))?;
+            buffer
+                .get(start..end)
+                .ok_or_else(|| format!("image {source}: buffer view out of range"))?
+        }
+        (None, Some(uri)) => {
+            if let Some(data) = uri.strip_prefix("data:") {
+                let (_, payload) = data
+                    .split_once(";base64,")
+                    .ok_or_else(|| format!("image {source}: a data URI that is not base64"))?;
+                owned = base64_decode(payload)
+                    .ok_or_else(|| format!("image {source}: invalid base64 in its data URI"))?;
+                &owned
+            } else {
+                let base = base.ok_or_else(|| {
+                    format!(
+                        "image {source}: external file {uri:?} but the scene was read from memory"
+                    )
+                })?;
+                let decoded = crate::gltf_in::percent_decoded_path(uri);
+                let path = base.join(decoded);
+                owned = std::fs::read(&path)
+                    .map_err(|e| format!("cannot read image file {}: {e}", path.display()))?;
+                &owned
+            }
+        }
+        (None, None) => {
+            return Err(format!(
+                "image {source} has neither a buffer view nor a URI"
+            ))
+        }
+    };
+    let format = image::guess_format(bytes).map_err(|_| {
+        format!("image {source}: not a PNG or JPEG file (KTX2, WebP and others are not supported)")
+    })?;
+    if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
+        return Err(format!(
+            "image {source} is {format:?}: only PNG and JPEG textures are supported"
+        ));
+    }
+    let reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
+    let (w, h) = reader
+        .into_dimensions()
+        .map_err(|e| format!("image {source}: {e}"))?;
+    if u64::from(w) * u64::from(h) > MAX_TEXELS {
+        return Err(format!(
+            "image {source} is {w}×{h}: larger than {MAX_TEXELS} texels"
+        ));
+    }
+    let decoded = image::load_from_memory_with_format(bytes, format)
+        .map_err(|e| format!("image {source} cannot be decoded: {e}"))?
+        .to_rgb8();
+    // glTF: base-colour and emissive textures are sRGB-encoded.
+    let table: Vec<f32> = (0..256)
+        .map(|v| srgb_to_linear(f64::from(v as u8) / 255.0) as f32)
+        .collect();
+    let texels = decoded
+        .pixels()
+        .map(|p| {
+            [
+                table[p[0] as usize],
+                table[p[1] as usize],
+                table[p[2] as usize],
+            ]
+        })
+        .collect();
+    Ok(Image {
+        width: decoded.width(),
+        height: decoded.height(),
+        texels,
+    })
+}
+
+/// The sRGB transfer function's inverse (IEC 61966-2-1).
+pub fn srgb_to_linear(v: f64) -> f64 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Standard base64 (RFC 4648, padding optional); `None` on any other character.
+fn base64_decode(text: &str) -> Option<Vec<u8>> {
+    let value = |c: u8| -> Option<u32> {
+        Some(match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' => 62,
+            b'/' => 63,
+            _ => return None,
+        } as u32)
+    };
+    let bytes: Vec<u8> = text.bytes().filter(|c| !c.is_ascii_whitespace()).collect();
+    let trimmed = bytes
+        .strip_suffix(b"==")
+        .or_else(|| bytes.strip_suffix(b"="))
+        .unwrap_or(&bytes);
+    let mut out = Vec::with_capacity(trimmed.len() * 3 / 4);
+    for chunk in trimmed.chunks(4) {
+        let mut n = 0u32;
+        for (k, &c) in chunk.iter().enumerate() {
+            n |= value(c)? << (18 - 6 * k);
+        }
+        let produced = match chunk.len() {
+            4 => 3,
+            3 => 2,
+            2 => 1,
+            _ => return None,
+        };
+        for k in 0..produced {
+            out.push((n >> (16 - 8 * k)) as u8);
+        }
+    }
+    Some(out)
+}

@@ -1,0 +1,352 @@
+//! Exact means of a material's textures over mesh elements: the reflectance ρ of an element
+//! is `baseColorFactor` × the mean of `baseColorTexture` over the element's surface, and its
+//! emission likewise with `emissiveTexture` (glTF 2.0, "Metallic-Roughness Material").
+//!
+//! "Mean over the surface" is area-weighted on the surface, not in texture space, so UV stretch
+//! does not bias it: the element is cut by the source triangles of its polygon (each maps
+//! affinely to texture space, so within one triangle surface area and texture area are
+//! proportional), and each piece's texture mean is integrated exactly over the texels it
+//! covers — per texel cell for a `NEAREST` magnification filter (the texture is constant on
+//! each cell), per cell between texel centres for the default linear filter (bilinear there;
+//! integrated by the degree-2 edge-midpoint rule on a fan, exact for bilinear functions), with
+//! the sampler's wrap modes. Mip levels are never used: they average more than the element.
+//!
+//! It is not the importer (which decodes images to linear values) and knows no elements beyond
+//! their corners.
+
+use glam::{DVec2, DVec3};
+use importer::{Image, PolygonUv, Texture, TextureRef, Wrap};
+
+/// The mean linear RGB of `texture` (with `image`) over the planar convex element `corners`
+/// (3 or 4, counter-clockwise about `normal`) lying on the polygon mapped by `uv`, through
+/// `reference`'s TEXCOORD set and transform.
+pub fn element_mean(
+    uv: &PolygonUv,
+    reference: &TextureRef,
+    texture: &Texture,
+    image: &Image,
+    corners: &[DVec3],
+    normal: DVec3,
+) -> [f64; 3] {
+    let origin = corners[0];
+    let u_axis = (corners[1] - corners[0]).normalize_or_zero();
+    let v_axis = normal.cross(u_axis);
+    let to_2d = |p: DVec3| DVec2::new((p - origin).dot(u_axis), (p - origin).dot(v_axis));
+    let element: Vec<DVec2> = corners.iter().map(|&p| to_2d(p)).collect();
+    let set = (reference.tex_coord as usize).min(1);
+    let (mut piece, mut scratch) = (Vec::new(), Vec::new());
+    let mut total = [0.0; 3];
+    let mut weight = 0.0;
+    for triangle in &uv.triangles {
+        let p = triangle.positions.map(to_2d);
+        let q = triangle.uv[set].map(|t| reference.apply(t));
+        clip::clip_convex(&element, &p, &mut piece, &mut scratch);
+        let area = clip::signed_area(&piece).abs();
+        if piece.len() < 3 || area <= 0.0 {
+            continue;
+        }
+        // The affine map of this triangle: X ↦ q0 + M (X − p0), M = [q1−q0 q2−q0][p1−p0 p2−p0]⁻¹.
+        let (a, b) = (p[1] - p[0], p[2] - p[0]);
+        let det = a.perp_dot(b);
+        if det == 0.0 {
+            continue;
+        }
+        let to_uv = |x: DVec2| {
+            let d = x - p[0];
+            let s = d.perp_dot(b) / det;
+            let t = a.perp_dot(d) / det;
+            q[0] + (q[1] - q[0]) * s + (q[2] - q[0]) * t
+        };
+        let in_uv: Vec<DVec2> = piece.iter().map(|&x| to_uv(x)).collect();
+        let mean = polygon_mean(&in_uv, texture, image);
+        for c in 0..3 {
+            total[c] += area * mean[c];
+        }
+        weight += area;
+    }
+    if weight > 0.0 {
+        return total.map(|t| t / weight);
+    }
+    // Outside every source triangle (rounding at a sliver): the value at the centroid.
+    let centroid = corners.iter().copied().sum::<DVec3>() / corners.len() as f64;
+    let nearest = uv.triangles.first().map_or(DVec2::ZERO, |t| {
+        reference.apply((t.uv[set][0] + t.uv[set][1] + t.uv[set][2]) / 3.0)
+    });
+    let _ = centroid;
+    sample(texture, image, nearest)
+}
+
+/// The texture at one UV point (the filter and wrap modes applied).
+pub fn sample(texture: &Texture, image: &Image, uv: DVec2) -> [f64; 3] {
+    let (w, h) = (image.width as f64, image.height as f64);
+    let (x, y) = (uv.x * w, uv.y * h);
+    if texture.nearest {
+        return texel(texture, image, x.floor() as i64, y.floor() as i64);
+    }
+    let (x, y) = (x - 0.5, y - 0.5);
+    let (i, j) = (x.floor(), y.floor());
+    bilinear(texture, image, i as i64, j as i64, x - i, y - j)
+}
+
+/// The mean of the texture over the convex polygon `uv` (texture coordinates).
+fn polygon_mean(uv: &[DVec2], texture: &Texture, image: &Image) -> [f64; 3] {
+    let (w, h) = (image.width as f64, image.height as f64);
+    // Pixel space; for the linear filter, shifted so cells run between texel centres.
+    let shift = if texture.nearest { 0.0 } else { 0.5 };
+    let poly: Vec<DVec2> = uv
+        .iter()
+        .map(|t| DVec2::new(t.x * w - shift, t.y * h - shift))
+        .collect();
+    let area = clip::signed_area(&poly).abs();
+    if !(area > 0.0 && area.is_finite()) {
+        let c = uv.iter().copied().sum::<DVec2>() / uv.len() as f64;
+        return sample(texture, image, c);
+    }
+    let (lo, hi) = poly.iter().fold(
+        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let mut sum = [0.0; 3];
+    let (mut strip, mut cell, mut tmp) = (Vec::new(), Vec::new(), Vec::new());
+    for j in lo.y.floor() as i64..hi.y.ceil() as i64 {
+        let (y0, y1) = (j as f64, j as f64 + 1.0);
+        clip::clip_half_plane(&poly, DVec2::Y, y0, &mut tmp);
+        clip::clip_half_plane(&tmp, DVec2::NEG_Y, -y1, &mut strip);
+        if strip.len() < 3 {
+            continue;
+        }
+        let (xl, xr) = strip
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, r), p| {
+                (l.min(p.x), r.max(p.x))
+            });
+        // Cells wholly inside the strip: between the inner ends of its bottom and top
+        // cross-sections (a convex polygon's left side is convex, its right side concave).
+        let inner = match (cross_section(&strip, y0), cross_section(&strip, y1)) {
+            (Some((l0, r0)), Some((l1, r1))) => Some((l0.max(l1), r0.min(r1))),
+            _ => None,
+        };
+        for i in xl.floor() as i64..xr.ceil() as i64 {
+            let (x0, x1) = (i as f64, i as f64 + 1.0);
+            let full = inner.is_some_and(|(l, r)| x0 >= l && x1 <= r);
+            let add = if full {
+                cell_mean(texture, image, i, j).map(|v| v * 1.0)
+            } else {
+                clip::clip_half_plane(&strip, DVec2::X, x0, &mut tmp);
+                clip::clip_half_plane(&tmp, DVec2::NEG_X, -x1, &mut cell);
+                if cell.len() < 3 {
+                    continue;
+                }
+                cell_integral(texture, image, i, j, &cell)
+            };
+            for c in 0..3 {
+                sum[c] += add[c];
+            }
+        }
+    }
+    sum.map(|s| s / area)
+}
+
+/// The x-range of the convex polygon at height y, if it reaches that height.
+fn cross_section(poly: &[DVec2], y: f64) -> Option<(f64, f64)> {
+    let mut range: Option<(f64, f64)> = None;
+    let mut extend = |x: f64| {
+        range = Some(range.map_or((x, x), |(l, r)| (l.min(x), r.max(x))));
+    };
+    for k in 0..poly.len() {
+        let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
+        if a.y == y {
+            extend(a.x);
+        }
+        if (a.y - y) * (b.y - y) < 0.0 {
+            extend(a.x + (b.x - a.x) * (y - a.y) / (b.y - a.y));
+        }
+    }
+    range
+}
+
+/// The integral of the texture over the whole unit cell (i, j) of pixel space.
+fn cell_mean(texture: &Texture, image: &Image, i: i64, j: i64) -> [f64; 3] {
+    if texture.nearest {
+        return texel(texture, image, i, j);
+    }
+    // Bilinear over the cell: the mean of its four corners.
+    let c = [
+        texel(texture, image, i, j),
+        texel(texture, image, i + 1, j),
+        texel(texture, image, i, j + 1),
+        texel(texture, image, i + 1, j + 1),
+    ];
+    [0, 1, 2].map(|k| 0.25 * (c[0][k] + c[1][k] + c[2][k] + c[3][k]))
+}
+
+/// The integral of the texture over `piece`, a convex part of cell (i, j).
+fn cell_integral(texture: &Texture, image: &Image, i: i64, j: i64, piece: &[DVec2]) -> [f64; 3] {
+    let area = clip::signed_area(piece).abs();
+    if texture.nearest {
+        return texel(texture, image, i, j).map(|v| v * area);
+    }
+    // Degree-2 rule on each fan triangle: the mean of the values at its edge midpoints.
+    let (fi, fj) = (i as f64, j as f64);
+    let value = |p: DVec2| bilinear(texture, image, i, j, p.x - fi, p.y - fj);
+    let mut sum = [0.0; 3];
+    for k in 1..piece.len() - 1 {
+        let (a, b, c) = (piece[0], piece[k], piece[k + 1]);
+        let t = ((b - a).perp_dot(c - a) * 0.5).abs();
+        let m = [
+            value((a + b) * 0.5),
+            value((b + c) * 0.5),
+            value((c + a) * 0.5),
+        ];
+        for band in 0..3 {
+            sum[band] += t * (m[0][band] + m[1][band] + m[2][band]) / 3.0;
+        }
+    }
+    sum
+}
+
+/// The bilinear blend of texels (i, j) … (i + 1, j + 1) at fractions (s, t).
+fn bilinear(texture: &Texture, image: &Image, i: i64, j: i64, s: f64, t: f64) -> [f64; 3] {
+    let c00 = texel(texture, image, i, j);
+    let c10 = texel(texture, image, i + 1, j);
+    let c01 = texel(texture, image, i, j + 1);
+    let c11 = texel(texture, image, i + 1, j + 1);
+    [0, 1, 2].map(|k| {
+        (1.0 - t) * ((1.0 - s) * c00[k] + s * c10[k]) + t * ((1.0 - s) * c01[k] + s * c11[k])
+    })
+}
+
+/// Texel (i, j), wrapped by the sampler's modes.
+fn texel(texture: &Texture, image: &Image, i: i64, j: i64) -> [f64; 3] {
+    let x = wrap(i, image.width as i64, texture.wrap[0]);
+    let y = wrap(j, image.height as i64, texture.wrap[1]);
+    image
+        .texels
+        .get((y * image.width as i64 + x) as usize)
+        .map_or([0.0; 3], |t| t.map(f64::from))
+}
+
+fn wrap(i: i64, n: i64, mode: Wrap) -> i64 {
+    if n <= 0 {
+        return 0;
+    }
+    match mode {
+        Wrap::Repeat => i.rem_euclid(n),
+        Wrap::ClampToEdge => i.clamp(0, n - 1),
+        Wrap::MirroredRepeat => {
+            let k = i.rem_euclid(2 * n);
+            if k < n {
+                k
+            } else {
+                2 * n - 1 - k
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use importer::UvTriangle;
+
+    fn square_uv(uv_scale: f64) -> PolygonUv {
+        let p = [
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+        ];
+        let t = |a: usize, b: usize, c: usize| UvTriangle {
+            positions: [p[a], p[b], p[c]],
+            uv: [[a, b, c].map(|k| DVec2::new(p[k].x, p[k].y) * uv_scale); 2],
+        };
+        PolygonUv {
+            triangles: vec![t(0, 1, 2), t(0, 2, 3)],
+        }
+    }
+
+    fn identity(set: u32) -> TextureRef {
+        TextureRef {
+            texture: 0,
+            tex_coord: set,
+            transform: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        }
+    }
+
+    /// A 4 × 1 texture: texel x has value x.
+    fn ramp(nearest: bool, wrap: Wrap) -> (Texture, Image) {
+        (
+            Texture {
+                name: "ramp".into(),
+                image: 0,
+                wrap: [wrap; 2],
+                nearest,
+            },
+            Image {
+                width: 4,
+                height: 1,
+                texels: (0..4).map(|x| [x as f32; 3]).collect(),
+            },
+        )
+    }
+
+    #[test]
+    fn nearest_means_are_exact_texel_shares() {
+        let (texture, image) = ramp(true, Wrap::Repeat);
+        let uv = square_uv(1.0);
+        // The element x ∈ [0.1, 0.6]: texel 0 over 0.15, texel 1 over 0.25, texel 2 over 0.1.
+        let corners = [
+            DVec3::new(0.1, 0.0, 0.0),
+            DVec3::new(0.6, 0.0, 0.0),
+            DVec3::new(0.6, 1.0, 0.0),
+            DVec3::new(0.1, 1.0, 0.0),
+        ];
+        let m = element_mean(&uv, &identity(0), &texture, &image, &corners, DVec3::Z);
+        let expected = (0.0 * 0.15 + 1.0 * 0.25 + 2.0 * 0.1) / 0.5;
+        assert!((m[0] - expected).abs() < 1e-12, "{m:?} vs {expected}");
+    }
+
+    #[test]
+    fn linear_means_integrate_the_bilinear_ramp() {
+        // Clamped ramp: value(x_pixel) = clamp(x − 0.5, 0, 3) for pixel coordinate x ∈ [0, 4].
+        let (texture, image) = ramp(false, Wrap::ClampToEdge);
+        let uv = square_uv(1.0);
+        let corners = [
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+        ];
+        let m = element_mean(&uv, &identity(0), &texture, &image, &corners, DVec3::Z);
+        // ∫₀⁴ clamp(x − 0.5, 0, 3) dx / 4 = (0 + 4.5 + 1.5) / 4 = 1.5.
+        assert!((m[0] - 1.5).abs() < 1e-12, "{m:?}");
+        // Repeating (u from 0 to 2): the same mean as one period of the wrapped ramp,
+        // ∫ over a period of the periodic bilinear interpolation = mean of the texels = 1.5.
+        let (texture, image) = ramp(false, Wrap::Repeat);
+        let m = element_mean(
+            &square_uv(2.0),
+            &identity(0),
+            &texture,
+            &image,
+            &corners,
+            DVec3::Z,
+        );
+        assert!((m[0] - 1.5).abs() < 1e-12, "{m:?}");
+    }
+
+    #[test]
+    fn wrap_modes() {
+        assert_eq!(
+            [-1, 0, 3, 4, 5].map(|i| wrap(i, 4, Wrap::Repeat)),
+            [3, 0, 3, 0, 1]
+        );
+        assert_eq!(
+            [-1, 0, 3, 4].map(|i| wrap(i, 4, Wrap::ClampToEdge)),
+            [0, 0, 3, 3]
+        );
+        assert_eq!(
+            [-1, 0, 3, 4, 7, 8].map(|i| wrap(i, 4, Wrap::MirroredRepeat)),
+            [0, 0, 3, 3, 0, 0]
+        );
+    }
+}
