@@ -263,7 +263,9 @@ pub enum ImportError {
 ///
 /// - glTF: the nodes of the default scene (else scene 0, else every root node) are baked,
 ///   each mesh once per node that uses it. ρ = `baseColorFactor` rgb, e = `emissiveFactor`
-///   × `KHR_materials_emissive_strength`; textures and vertex colours are ignored. A
+///   × `KHR_materials_emissive_strength`; the `baseColorTexture` and `emissiveTexture` of
+///   materials in use are decoded ([`texture`]; averaged per element by `bake-texture`);
+///   vertex colours are ignored. A
 ///   primitive without a material uses the glTF default material (ρ = 1, e = 0,
 ///   single-sided), appended after the file's materials when some primitive needs it.
 ///   A node whose world matrix is singular (a scale of 0) is skipped with a warning: its
