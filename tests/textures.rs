@@ -209,3 +209,20 @@ fn unsupported_or_missing_textures_are_refused_naming_the_texture() {
     assert_eq!(run.code, Some(1), "{run:?}");
     assert!(run.stderr.contains("missing.png"), "{}", run.stderr);
 }
+
+#[test]
+fn grey_texture_on_a_grey_factor_is_still_one_band() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    // A grey checker: every texel has r = g = b, so every element's ρ does too.
+    let texture = png(8, 8, |x, y| [if (x + y) % 2 == 0 { 60 } else { 200 }; 3]);
+    let doc = floor_scene([0.5; 3], Some((texture, false)));
+    let report = bake_json(dir.path(), "grey", &doc, &[]);
+    assert!(report
+        .elements
+        .iter()
+        .all(|e| e.rho[0] == e.rho[1] && e.rho[1] == e.rho[2]));
+    assert_eq!(
+        report.solver.factorizations, 1,
+        "one LU for the three bands"
+    );
+}
