@@ -20,7 +20,9 @@ mod contour;
 mod estimate;
 mod polygon;
 
-pub use contour::{ContourOptions, MAX_ORDER};
+pub use contour::{
+    max_edge_pair_evaluations, ContourOptions, MAX_ORDER, MAX_PIECES, MAX_SEGMENT_PAIR_EVALUATIONS,
+};
 pub use estimate::{point_to_polygon, Estimator, TriangleRule, MIN_TOLERANCE};
 use estimate::{Choice, PairGeometry};
 use glam::DVec3;
@@ -376,6 +378,17 @@ pub fn surface_pair(
         evaluations,
         method,
     })
+}
+
+/// Kernel evaluations of one pair at most ([`surface_pair`], [`FormFactors::area_weighted`],
+/// [`polygon_pair_with`]), by any estimator with these contour options: a surface has at most
+/// 4 corners and clipping it by the other's plane adds at most one (a plane cuts a convex
+/// polygon's boundary at most twice and drops at least one corner), so at most 5 × 5 edge
+/// pairs, each within [`max_edge_pair_evaluations`]. The point estimators use far fewer (at
+/// most 7 points on each of 3 triangles times 5 edge terms).
+pub fn max_pair_evaluations(options: &ContourOptions) -> u64 {
+    const MAX_CLIPPED_SIDES: u64 = 5;
+    MAX_CLIPPED_SIDES * MAX_CLIPPED_SIDES * max_edge_pair_evaluations(options)
 }
 
 /// What [`surface_screen`] finds out about a pair without integrating it.
