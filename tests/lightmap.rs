@@ -18,7 +18,7 @@
 
 mod common;
 
-use common::{bake, file_names, fixture, write_text};
+use common::{bake, file_names, fixture, tools_dir, validator_available, write_text};
 use glam::{DVec2, DVec3};
 use lightmap::{Lightmap, Texel};
 use std::path::{Path, PathBuf};
@@ -925,21 +925,6 @@ fn images_read_back_and_the_gltf_re_reads() {
 }
 
 // ---- the Khronos validator ----
-
-fn tools_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tools")
-}
-
-fn validator_available() -> bool {
-    let installed = tools_dir()
-        .join(".validator/node_modules/gltf-validator/package.json")
-        .is_file();
-    let node_runs = Command::new("node")
-        .arg("--version")
-        .output()
-        .is_ok_and(|output| output.status.success());
-    installed && node_runs
-}
 
 #[test]
 fn lightmap_outputs_pass_the_khronos_validator() {

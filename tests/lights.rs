@@ -9,7 +9,9 @@
 
 mod common;
 
-use common::{bake, bake_json, data_uri, write_json};
+use common::{
+    bake, bake_json, blender_installed, data_uri, tools_dir, validator_available, write_json,
+};
 use exporter::report::{ElementEntry, Report};
 use serde_json::{json, Value};
 use std::f64::consts::PI;
@@ -384,27 +386,6 @@ fn unusable_lights_are_skipped_with_a_warning_and_obj_has_none() {
 }
 
 // ---- a room made by Blender's own glTF exporter ----
-
-fn tools_dir() -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tools")
-}
-
-fn blender_installed() -> bool {
-    std::process::Command::new("blender")
-        .arg("--version")
-        .output()
-        .is_ok_and(|o| o.status.success())
-}
-
-fn validator_available() -> bool {
-    tools_dir()
-        .join(".validator/node_modules/gltf-validator/package.json")
-        .is_file()
-        && std::process::Command::new("node")
-            .arg("--version")
-            .output()
-            .is_ok_and(|o| o.status.success())
-}
 
 fn required(variable: &str) -> bool {
     std::env::var(variable).is_ok_and(|v| v == "1")

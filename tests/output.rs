@@ -8,7 +8,10 @@
 
 mod common;
 
-use common::{bake, bake_in, file_names, fixture, report_without_timings, CUBE_WALLS};
+use common::{
+    bake, bake_in, file_names, fixture, report_without_timings, tools_dir, validator_available,
+    CUBE_WALLS,
+};
 use exporter::report::{ElementEntry, Report};
 use gltf::mesh::util::ReadColors;
 use gltf::mesh::Semantic;
@@ -449,22 +452,6 @@ fn triangle_area(p: &[[f64; 3]; 3]) -> f64 {
 }
 
 // ---- the Khronos validator ----
-
-fn tools_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tools")
-}
-
-/// Whether `node` runs and `tools/install-validator` has installed the validator.
-fn validator_available() -> bool {
-    let installed = tools_dir()
-        .join(".validator/node_modules/gltf-validator/package.json")
-        .is_file();
-    let node_runs = Command::new("node")
-        .arg("--version")
-        .output()
-        .is_ok_and(|output| output.status.success());
-    installed && node_runs
-}
 
 #[test]
 fn outputs_pass_the_khronos_validator() {

@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::bake;
+use common::{bake, tools_dir, validator_available};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -58,22 +58,6 @@ fn fixtures() -> Vec<PathBuf> {
         .collect();
     scenes.sort();
     scenes
-}
-
-fn tools_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tools")
-}
-
-/// Whether `node` runs and `tools/install-validator` has installed the validator.
-fn validator_available() -> bool {
-    let installed = tools_dir()
-        .join(".validator/node_modules/gltf-validator/package.json")
-        .is_file();
-    let node_runs = Command::new("node")
-        .arg("--version")
-        .output()
-        .is_ok_and(|output| output.status.success());
-    installed && node_runs
 }
 
 /// `cube.gltf` + smooth + [] + glb → `cube.gltf-smooth.glb`; a mode's arguments are

@@ -12,7 +12,7 @@
 
 mod common;
 
-use common::{bake, bake_in, fixture, Run, CUBE_WALLS};
+use common::{bake, bake_in, blender_installed, fixture, Run, CUBE_WALLS};
 use exporter::report::{read_report, Report};
 use preview::image::RgbImage;
 use preview::{srgb8, Camera};
@@ -348,13 +348,6 @@ fn pyrender_renders_the_reported_colours() {
     let stdout = show("pyrender harness", &output, started);
     assert!(stdout.contains("cube: 96 elements"), "{stdout}");
     assert!(stdout.trim_end().ends_with("ok"), "{stdout}");
-}
-
-fn blender_installed() -> bool {
-    Command::new("blender")
-        .arg("--version")
-        .output()
-        .is_ok_and(|o| o.status.success())
 }
 
 #[test]

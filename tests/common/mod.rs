@@ -305,3 +305,28 @@ pub fn bake_json(dir: &Path, name: &str, doc: &Value, args: &[&str]) -> exporter
     bake(all).success();
     exporter::report::read_report(&report).expect("read the report")
 }
+
+/// The repository's `tools/` directory.
+pub fn tools_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tools")
+}
+
+/// Whether `node` runs and `tools/install-validator` has installed the Khronos validator.
+pub fn validator_available() -> bool {
+    let installed = tools_dir()
+        .join(".validator/node_modules/gltf-validator/package.json")
+        .is_file();
+    let node_runs = Command::new("node")
+        .arg("--version")
+        .output()
+        .is_ok_and(|output| output.status.success());
+    installed && node_runs
+}
+
+/// Whether `blender` runs.
+pub fn blender_installed() -> bool {
+    Command::new("blender")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success())
+}

@@ -105,8 +105,6 @@ pub struct Bake {
     /// Per element: the punctual lights' first reflection `ρ E / π`, the part of `b` (and of
     /// the source term `e + ρ E / π` the solver saw) that comes straight from the lights.
     pub direct: Vec<[f64; BANDS]>,
-    /// Per element: mean illuminance E from the punctual lights (lux per band).
-    pub illuminance: Vec<[f64; BANDS]>,
     /// Per light of the scene: what its direct-light pass did.
     pub light_stats: Vec<direct::LightStats>,
     pub solution: Solution,
@@ -308,7 +306,6 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
         rho,
         emission,
         direct,
-        illuminance: lit.illuminance,
         light_stats: lit.stats,
         solution,
         solve,

@@ -221,7 +221,7 @@ impl<'a> LightPass<'a> {
         }
         let g = match self.light.kind {
             LightKind::Directional => {
-                self.directional(&patch, area, polygon_shadowed, scratch, &mut stats)
+                self.directional(&patch, polygon_shadowed, scratch, &mut stats)
             }
             _ => self.point(&patch, i, area, polygon_shadowed, &mut stats),
         };
@@ -321,7 +321,6 @@ impl<'a> LightPass<'a> {
     fn directional(
         &self,
         patch: &Patch,
-        area: f64,
         polygon_shadowed: bool,
         scratch: &mut Scratch,
         stats: &mut LightStats,
@@ -343,14 +342,14 @@ impl<'a> LightPass<'a> {
         }
         stats.elements_shadowed = 1;
         stats.elements_clipped = 1;
-        let lit = self.lit_share(patch, area, cos, scratch);
+        let lit = self.lit_share(patch, cos, scratch);
         cos * lit
     }
 
     /// The share of `patch` no candidate occluder's shadow covers: each occluder's part in
     /// front of the patch's plane, projected along the light onto it, clipped to the patch;
     /// 1 − (area of their union) / A, exactly (up to rounding).
-    fn lit_share(&self, patch: &Patch, area: f64, cos: f64, scratch: &mut Scratch) -> f64 {
+    fn lit_share(&self, patch: &Patch, cos: f64, scratch: &mut Scratch) -> f64 {
         let n = patch.normal();
         let d = self.light.direction;
         let corners = patch.corners();
@@ -409,7 +408,6 @@ impl<'a> LightPass<'a> {
         let shadows: Vec<&[DVec2]> = clipped[..used].iter().map(|p| p.as_slice()).collect();
         let covered = clip::union_area(&shadows);
         // Relative to the receiver's own 2D area, so rounding of A cancels.
-        let _ = area;
         (1.0 - covered / receiver_area).clamp(0.0, 1.0)
     }
 }

@@ -67,13 +67,12 @@ pub fn element_mean(
     if weight > 0.0 {
         return total.map(|t| t / weight);
     }
-    // Outside every source triangle (rounding at a sliver): the value at the centroid.
-    let centroid = corners.iter().copied().sum::<DVec3>() / corners.len() as f64;
-    let nearest = uv.triangles.first().map_or(DVec2::ZERO, |t| {
+    // Outside every source triangle (rounding at a sliver): the texture at the centre of the
+    // polygon's first source triangle.
+    let centre = uv.triangles.first().map_or(DVec2::ZERO, |t| {
         reference.apply((t.uv[set][0] + t.uv[set][1] + t.uv[set][2]) / 3.0)
     });
-    let _ = centroid;
-    sample(texture, image, nearest)
+    sample(texture, image, centre)
 }
 
 /// The texture at one UV point (the filter and wrap modes applied).
@@ -130,7 +129,7 @@ fn polygon_mean(uv: &[DVec2], texture: &Texture, image: &Image) -> [f64; 3] {
             let (x0, x1) = (i as f64, i as f64 + 1.0);
             let full = inner.is_some_and(|(l, r)| x0 >= l && x1 <= r);
             let add = if full {
-                cell_mean(texture, image, i, j).map(|v| v * 1.0)
+                cell_mean(texture, image, i, j)
             } else {
                 clip::clip_half_plane(&strip, DVec2::X, x0, &mut tmp);
                 clip::clip_half_plane(&tmp, DVec2::NEG_X, -x1, &mut cell);
