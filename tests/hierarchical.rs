@@ -191,3 +191,39 @@ fn the_cli_reports_the_transport_and_refuses_direct_with_hierarchical() {
         .contains("--solver direct needs the dense transport"));
     assert!(!dir.path().join("x.glb").exists());
 }
+
+#[test]
+#[ignore = "measurement table: dense vs hierarchical at the acceptance sizes (minutes, release)"]
+fn acceptance_table() {
+    for (name, size) in [("cornell.gltf", 27.0), ("two-rooms.gltf", 0.2)] {
+        let start = std::time::Instant::now();
+        let dense = run(name, size, TransportKind::Dense, None);
+        println!("{name}: dense {:.2} s", start.elapsed().as_secs_f64());
+        for t in [1e-2, 3e-3, 1e-3] {
+            let start = std::time::Instant::now();
+            let h = run(name, size, TransportKind::Hierarchical, Some(t));
+            let s = start.elapsed().as_secs_f64();
+            let (rms, worst) = differences(&dense, &h);
+            let mut rows: Vec<(f64, usize)> = dense
+                .solution
+                .b
+                .iter()
+                .zip(&h.solution.b)
+                .enumerate()
+                .map(|(k, (d, x))| ((x[0] - d[0]).abs() / d[0].max(0.05), k))
+                .collect();
+            rows.sort_by(|a, b| b.0.total_cmp(&a.0));
+            for &(r, k) in rows.iter().take(3) {
+                let el = &dense.mesh.elements[k];
+                println!(
+                    "  worst {r:.3}: element {k} polygon {} area {:.4} centroid {:?} dense {:.4} h {:.4}",
+                    el.polygon, el.area, el.centroid, dense.solution.b[k][0], h.solution.b[k][0]
+                );
+            }
+            println!(
+                "{name} {t}: {s:.2} s, {} links, {} rays, rms {rms:.4}, worst {worst:.4}",
+                h.counts.links, h.counts.rays_cast
+            );
+        }
+    }
+}

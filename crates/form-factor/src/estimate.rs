@@ -33,7 +33,7 @@
 //! takes the cheapest candidate (in ln-evaluation units: point-to-polygon's edge terms cost
 //! about two) whose bound meets the tolerance and falls back to the exact contour integral.
 
-use crate::polygon::Poly;
+use crate::polygon::{Poly, CAPACITY};
 use glam::DVec3;
 use std::f64::consts::PI;
 
@@ -453,38 +453,106 @@ pub(crate) fn point_polygon(
 /// vertex, where the kernel of a pair sharing an edge peaks) and `F_{dy→a}` at the same points of `b`; the
 /// larger.
 /// Also returns the mean kernel over each side's points (`F_{dx→b}` over a, `F_{dy→a}` over b).
-pub(crate) fn variation_and_means(a: &Poly, na: DVec3, b: &Poly, nb: DVec3) -> (f64, f64, f64) {
-    let (va, ma) = side_variation(a, na, b);
-    let (vb, mb) = side_variation(b, nb, a);
-    (va.max(vb), ma, mb)
+/// One side of a pair screened: the point-to-polygon kernel `F_{dx→to}` at sample points x
+/// of `from` (see [`side_fit`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct SideFit {
+    /// Mean of the kernel over the sample points.
+    pub mean: f64,
+    /// `(max − min) / mean` of the kernel over the points (0 when the mean is 0).
+    pub spread: f64,
+    /// `(max − min) / mean` of what a least-squares linear fit in the plane leaves over.
+    pub residual: f64,
+    /// The fit's gradient (in the plane of `from`, per unit of the coordinates given).
+    pub gradient: DVec3,
 }
 
-/// How far towards each corner the outer sample points of [`side_variation`] lie: near the
+/// How far towards each corner the outer sample points of [`side_fit`] lie: near the
 /// corner, where the kernel of a pair sharing an edge peaks, but off the edge, where an edge
 /// term of the closed form has no direction (x on the other polygon's edge line).
 const CORNER_INSET: f64 = 0.95;
 
-fn side_variation(from: &Poly, n: DVec3, to: &Poly) -> (f64, f64) {
+/// The kernel `F_{dx→to}` at points x of `from` (its centre, the midpoints towards its
+/// corners, points [`CORNER_INSET`] of the way to them): its mean and relative spread, and the
+/// least-squares plane `m + g · (x − x̄)` through the values (x̄ the points' mean, which is
+/// the centre: the points are symmetric about it) with what that plane leaves unexplained.
+/// The spread says how much a constant misrepresents the kernel over `from`, the residual how
+/// much a linear function does (a first-order Taylor model of the receiver's irradiance).
+/// With `fit` false only the centre is sampled (the mean is that one value; spread, residual
+/// and gradient are 0): for a side whose variation does not matter (an element, which a
+/// hierarchy never splits).
+pub(crate) fn side_fit(from: &Poly, n: DVec3, to: &Poly, fit: bool) -> SideFit {
     let v = from.vertices();
     let centre = v.iter().copied().sum::<DVec3>() / v.len() as f64;
-    let (mut lo, mut hi, mut sum) = (f64::INFINITY, 0.0f64, 0.0);
+    if !fit {
+        let mean = rough_point_to_polygon(centre, n, to.vertices());
+        return SideFit {
+            mean: if mean.is_finite() { mean } else { 0.0 },
+            spread: 0.0,
+            residual: 0.0,
+            gradient: DVec3::ZERO,
+        };
+    }
+    // An orthonormal frame of the plane.
+    let t1 = (v[1] - v[0]).reject_from(n).normalize_or_zero();
+    let t2 = n.cross(t1);
+    let mut xs = [DVec3::ZERO; 1 + 2 * CAPACITY];
+    let mut fs = [0.0f64; 1 + 2 * CAPACITY];
+    let mut count = 0;
     // Near the corners too: next to a shared edge the kernel peaks where the midpoints miss it.
     let points = std::iter::once(centre)
         .chain(v.iter().map(|&c| (c + centre) * 0.5))
         .chain(v.iter().map(|&c| centre + (c - centre) * CORNER_INSET));
-    let mut count = 0.0;
-    for x in points {
-        let f = rough_point_to_polygon(x, n, to.vertices());
-        lo = lo.min(f);
-        hi = hi.max(f);
-        sum += f;
-        count += 1.0;
+    for x in points.take(xs.len()) {
+        xs[count] = x;
+        fs[count] = rough_point_to_polygon(x, n, to.vertices());
+        count += 1;
     }
-    let mean = sum / count;
-    if mean > 0.0 {
-        ((hi - lo) / mean, mean)
+    let (xs, fs) = (&xs[..count], &fs[..count]);
+    let mean = fs.iter().sum::<f64>() / count as f64;
+    if mean <= 0.0 || !mean.is_finite() {
+        return SideFit {
+            mean: 0.0,
+            spread: 0.0,
+            residual: 0.0,
+            gradient: DVec3::ZERO,
+        };
+    }
+    let (lo, hi) = fs
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &f| {
+            (lo.min(f), hi.max(f))
+        });
+    // Normal equations of the centred fit f − mean ≈ a u + b v.
+    let (mut suu, mut suv, mut svv, mut suf, mut svf) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for (x, f) in xs.iter().zip(fs) {
+        let d = *x - centre;
+        let (u, w) = (d.dot(t1), d.dot(t2));
+        let df = f - mean;
+        suu += u * u;
+        suv += u * w;
+        svv += w * w;
+        suf += u * df;
+        svf += w * df;
+    }
+    let det = suu * svv - suv * suv;
+    let (a, b) = if det > 1e-12 * (suu * svv).max(f64::MIN_POSITIVE) {
+        ((svv * suf - suv * svf) / det, (suu * svf - suv * suf) / det)
     } else {
         (0.0, 0.0)
+    };
+    let (mut rlo, mut rhi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (x, f) in xs.iter().zip(fs) {
+        let d = *x - centre;
+        let r = f - mean - a * d.dot(t1) - b * d.dot(t2);
+        rlo = rlo.min(r);
+        rhi = rhi.max(r);
+    }
+    SideFit {
+        mean,
+        spread: (hi - lo) / mean,
+        residual: (rhi - rlo) / mean,
+        gradient: t1 * a + t2 * b,
     }
 }
 

@@ -395,36 +395,61 @@ pub fn max_pair_evaluations(options: &ContourOptions) -> u64 {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PairScreen {
     pub kind: PairKind,
-    /// How much the point-to-surface kernel varies over the pair, relative to its mean: the
-    /// larger over the two sides of `(max − min) / mean` of `F_{dx→b}` at points of `a` (its
-    /// centroid, the midpoints towards its corners, points 95 % of the way to them) and of
-    /// `F_{dy→a}` at those of `b`. 0 when the kernel is constant over both (a distant pair),
-    /// about 1 or more when one side sees the other very differently from place to place (a
-    /// corner).
-    pub variation: f64,
-    /// `A_a F_ab` (unoccluded) by the point rule behind the variation: the mean of the
-    /// point-to-surface kernel over the points of the smaller surface, times its area. Good to
-    /// about the variation (relative); for deciding, not for keeping.
+    /// `A_a F_ab` (unoccluded) by a point rule: the mean of the point-to-surface kernel over
+    /// the sample points of the smaller surface (its centre alone if that side is not fitted),
+    /// times its area. Good to about the kernel's spread (relative); for deciding, not for
+    /// keeping.
     pub rough: f64,
+    /// Per side (`a`, then `b`): the kernel towards the other side sampled at points of the
+    /// side (its centroid, the midpoints towards its corners, points 95 % of the way to them).
+    pub sides: [SideScreen; 2],
 }
 
-/// The cheap half of [`surface_pair`]: clipping, the kernel variation and a rough value, for
-/// deciding whether a pair is worth integrating at all (a hierarchy refines most pairs it
-/// looks at). `None` exactly when [`surface_pair`] is `None`.
-pub fn surface_screen(a: &Surface, b: &Surface) -> Option<PairScreen> {
+/// One side of a [`PairScreen`]: how the kernel `F_{dx→other}` varies over it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SideScreen {
+    /// `(max − min) / mean` of the kernel over the side's points: 0 when the kernel is constant
+    /// over it (a distant pair), about 1 or more when the side sees the other very differently
+    /// from place to place (a corner).
+    pub spread: f64,
+    /// `(max − min) / mean` of what the least-squares plane through those values leaves over:
+    /// how far a linear model of the side's irradiance from the other side is off.
+    pub residual: f64,
+    /// That plane's gradient, `∇F_{dx→other}` in world units (per length), lying in the
+    /// side's plane; zero for a clipped pair (the fit covers only the front part).
+    pub gradient: DVec3,
+}
+
+/// The cheap half of [`surface_pair`]: clipping, how the kernel varies over each side and a
+/// rough value, for deciding whether a pair is worth integrating at all (a hierarchy refines
+/// most pairs it looks at). `fit[k]`: whether side k's variation is wanted (else only its
+/// centre is sampled and its [`SideScreen`] is zero). `None` exactly when [`surface_pair`] is
+/// `None`.
+pub fn surface_screen(a: &Surface, b: &Surface, fit: [bool; 2]) -> Option<PairScreen> {
     let f = facing(a, b)?;
-    let (variation, mean_a, mean_b) = estimate::variation_and_means(&f.a, a.normal, &f.b, b.normal);
+    let fa = estimate::side_fit(&f.a, a.normal, &f.b, fit[0]);
+    let fb = estimate::side_fit(&f.b, b.normal, &f.a, fit[1]);
     // A_a mean_x F_{dx→b} and A_b mean_y F_{dy→a} estimate the same G; the smaller surface's
     // points sample its kernel better.
     let rough = if a.area <= b.area {
-        a.area * mean_a
+        a.area * fa.mean
     } else {
-        b.area * mean_b
+        b.area * fb.mean
+    };
+    // The fit ran in the pair's frame (world / unit): per world length, ∇ scales by 1/unit.
+    let side = |s: estimate::SideFit| SideScreen {
+        spread: s.spread,
+        residual: s.residual,
+        gradient: if f.kind == PairKind::Clipped {
+            DVec3::ZERO
+        } else {
+            s.gradient / f.unit
+        },
     };
     Some(PairScreen {
         kind: f.kind,
-        variation,
         rough,
+        sides: [side(fa), side(fb)],
     })
 }
 

@@ -4,7 +4,7 @@ use glam::DVec3;
 use mesher::{Element, ElementMesh, PatchGrid};
 
 /// A clipped quad has at most 5 vertices; keep room for 8.
-const CAPACITY: usize = 8;
+pub(crate) const CAPACITY: usize = 8;
 
 #[derive(Clone, Copy, Debug)]
 pub struct Poly {

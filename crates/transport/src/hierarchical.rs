@@ -15,17 +15,28 @@
 //! radiosity is at most `ε = link_tolerance × B̄` (B̄ the scene's area-weighted mean radiosity):
 //!
 //! ```text
-//!   error at p  =  ρ_p · B_q · (G · variation + G₀ · uncertainty) / A_p     (and p ↔ q)
+//!   error at p  =  ρ_p · B_q · (G · fit + G₀ · uncertainty) / A_p     (and p ↔ q)
+//!   fit         =  residual_p + residual_q
 //! ```
 //!
-//! with `variation` the spread of the point-to-polygon kernel over the two nodes relative to
-//! its mean (`form_factor::PairScreen::variation`: 0 for a distant pair, ~1 at a corner), G₀
-//! the unoccluded value and `uncertainty` 1 when some polygon can come between the nodes (a
-//! shadow boundary may cross the pair, whatever its few shadow rays saw) or when a node straddles the other's plane (only its front
-//! part receives light, but a link spreads it over all of the node), 0 otherwise. Otherwise the larger node of
-//! the pair (by area) is split and its children are linked to the other node recursively;
-//! leaf–leaf pairs are always kept. The integrator's own uncertainty plays no part: the
-//! estimators are accurate to their tolerance.
+//! with `residual` what a least-squares plane through the point-to-polygon kernel, sampled at
+//! 9 points of a node, leaves over relative to its mean (`form_factor::SideScreen`; 0 for an
+//! element, which receives its exact average and, as a source, is constant), G₀ the unoccluded
+//! value and `uncertainty` 1 when some polygon can come between the nodes (a shadow boundary
+//! may cross the pair, whatever its few shadow rays saw) or when a node straddles the other's
+//! plane (only its front part receives light, but a link spreads it over all of the node), 0
+//! otherwise. The source's term assumes B varies over it as much as B itself (conservative).
+//! Otherwise the larger node of the pair (by area) is split and its children are linked to the
+//! other node recursively; leaf–leaf pairs are always kept. The integrator's own uncertainty
+//! plays no part: the estimators are accurate to their tolerance.
+//!
+//! **Linear links.** A link carries, besides G, the fitted gradients of the kernel over both
+//! nodes: the receiver's irradiance from the link is the plane `F_pq B̄_q + ∇_p F · (x − c_p)
+//! B̄_q` (a first-order Taylor model instead of HSA91's constant), plus the source's linear
+//! term `∇_q F · m_q / A_p`, with `m_q = ∫_q B (y − c_q) dy` the first moment of the source's
+//! radiosity. Both terms have zero mean over the receiver and the same gradients serve both
+//! directions, so reciprocity and energy are exact as with constant links (README: measured
+//! errors against the dense transport and the continuous solution).
 //!
 //! **Passes.** B is not known before solving, so (as in HSA91) linking runs in passes: first
 //! with `B = max(e, B̄₀)` (B̄₀ the furnace estimate `Σ A e / Σ A (1 − ρ)`), then, after a coarse solve, again over the
@@ -33,8 +44,9 @@
 //! is reached). Links are never coarsened.
 //!
 //! **Gather and push–pull.** `y = F x` ([`solver::Operator`]): pull x up the trees
-//! (area-weighted means), gather `g_p = Σ_links F_pq x_q` at every node, push g down (each
-//! element receives the sum over its ancestors). Sums run in a fixed order, so the result is
+//! (area-weighted means and first moments), gather `g_p = Σ_links F_pq x_q` (and the linear
+//! terms) at every node, push g down (each child receives its parent's plane at its own area
+//! centroid, so the children's area-weighted mean is the parent's exactly). Sums run in a fixed order, so the result is
 //! bit-identical for any thread count; refinement is deterministic too (each candidate's
 //! shadow rays are seeded by its node pair, passes visit links in a fixed order).
 
@@ -67,9 +79,9 @@ pub struct HierarchicalOptions {
     pub max_links: u64,
 }
 
-/// Memory per kept link: the link itself while refining (56 bytes) and two operator entries
-/// (receiver index and coefficient, 12 bytes each, plus offsets).
-pub const BYTES_PER_LINK: u64 = 96;
+/// Memory per kept link: the link itself while refining (80 bytes) and two operator entries
+/// (source index, coefficient and two gradients, 36 bytes each, plus offsets).
+pub const BYTES_PER_LINK: u64 = 160;
 
 impl Default for HierarchicalOptions {
     fn default() -> Self {
@@ -144,14 +156,19 @@ struct Link {
     q: u32,
     /// `A_p F_pq`, visible part.
     g: f64,
-    /// `G · variation + G₀ · uncertainty`: the error factor of the BF criterion.
-    k: f64,
+    /// Per receiver (p, then q): `G · fit + G₀ · uncertainty`, the error factor of the BF
+    /// criterion.
+    k: [f64; 2],
     /// Whether some polygon can come between p and q (children must test again).
     occludable: bool,
-    /// Unoccluded `A_p F_pq` and the kernel variation, for recomputing `g` and `k` once the
-    /// shadow rays are cast.
+    /// Unoccluded `A_p F_pq` and, per receiver, the relative variation the link cannot
+    /// represent (its receiver's linear-fit residual plus its source's spread), for
+    /// recomputing `g` and `k` once the shadow rays are cast.
     g0: f64,
-    variation: f64,
+    fit: [f32; 2],
+    /// Per receiver (p, then q): the gradient of the unoccluded point-to-node kernel over it
+    /// (world units, in its plane), the linear part of what the link delivers.
+    gradient: [[f32; 3]; 2],
     clipped: bool,
     /// Whether `g` is the estimator's value with its visible fraction (only links that are
     /// kept are integrated and get rays; until then `g0` is the screen's rough value).
@@ -175,6 +192,13 @@ struct Entries {
     offsets: Vec<u64>,
     sources: Vec<u32>,
     coefficients: Vec<f64>,
+    /// Per entry, the visible part of: `∇F_{dx→s}` over the receiver r (the linear part of
+    /// the irradiance it delivers, pushed down as a linear function), and `∇F_{dy→r}` over
+    /// the source s (dotted with the first moment of the source's radiosity and divided by
+    /// `A_r`: the kernel's linear variation over the source, HSA91's constant source made
+    /// linear). The same f32 values serve both directions of a link, so the operator stays
+    /// exactly reciprocal.
+    gradients: Vec<[[f32; 3]; 2]>,
 }
 
 /// The operator over borrowed trees and entries: the final transport and the coarse solves
@@ -368,24 +392,32 @@ impl View<'_> {
     fn apply_generic<const B: usize>(&self, x: &[[f64; B]], y: &mut [[f64; B]]) {
         let total = self.nodes.len();
         // Pull: leaves are the elements; interior nodes (created after their children) are
-        // area-weighted means of their children.
+        // area-weighted means of their children, with the first moment `∫ x (y − c) dy` of
+        // the piecewise-constant x about the node's centroid c (0 for an element).
         let mut xn = vec![[0.0; B]; total];
+        let mut moment = vec![[DVec3::ZERO; B]; total];
         xn[..self.n].copy_from_slice(&x[..self.n]);
         for u in self.n..total {
             let node = &self.nodes[u];
             let mut sum = [0.0; B];
+            let mut m = [DVec3::ZERO; B];
             for &c in &self.children[node.first as usize..(node.first + node.count) as usize] {
-                let a = self.nodes[c as usize].surface.area;
+                let child = &self.nodes[c as usize].surface;
+                let offset = child.centroid - node.surface.centroid;
                 for band in 0..B {
-                    sum[band] += a * xn[c as usize][band];
+                    let power = child.area * xn[c as usize][band];
+                    sum[band] += power;
+                    m[band] += moment[c as usize][band] + offset * power;
                 }
             }
             for band in 0..B {
                 xn[u][band] = sum[band] / node.surface.area;
             }
+            moment[u] = m;
         }
-        // Gather over links, each receiver summed in its fixed entry order.
-        let mut g = vec![[0.0; B]; total];
+        // Gather over links, each receiver summed in its fixed entry order: the mean
+        // irradiance over the node and its gradient (a linear function over the node).
+        let mut g = vec![Delivered::<B>::default(); total];
         g.par_chunks_mut(1024).enumerate().for_each(|(chunk, out)| {
             for (k, gr) in out.iter_mut().enumerate() {
                 let r = chunk * 1024 + k;
@@ -393,29 +425,77 @@ impl View<'_> {
                     self.entries.offsets[r] as usize,
                     self.entries.offsets[r + 1] as usize,
                 );
-                let mut sum = [0.0; B];
-                for (&s, &f) in self.entries.sources[lo..hi]
+                let mut d = Delivered::<B>::default();
+                // An element's irradiance gradient is never pushed further, and an element
+                // as a source has no first moment: the common element–element entries
+                // take the constant term alone.
+                let receiver_is_leaf = r < self.n;
+                let inverse_area = 1.0 / self.nodes[r].surface.area;
+                for ((&s, &f), grad) in self.entries.sources[lo..hi]
                     .iter()
                     .zip(&self.entries.coefficients[lo..hi])
+                    .zip(&self.entries.gradients[lo..hi])
                 {
-                    for band in 0..B {
-                        sum[band] += f * xn[s as usize][band];
+                    let s = s as usize;
+                    let xs = &xn[s];
+                    for (mean, x) in d.mean.iter_mut().zip(xs) {
+                        *mean += f * x;
+                    }
+                    if s >= self.n {
+                        let source = vec3(grad[1]) * inverse_area;
+                        for (mean, m) in d.mean.iter_mut().zip(&moment[s]) {
+                            *mean += source.dot(*m);
+                        }
+                    }
+                    if !receiver_is_leaf {
+                        let receiver = vec3(grad[0]);
+                        for (gradient, x) in d.gradient.iter_mut().zip(xs) {
+                            *gradient += receiver * *x;
+                        }
                     }
                 }
-                *gr = sum;
+                *gr = d;
             }
         });
-        // Push: parents before children (reverse creation order).
+        // Push: parents before children (reverse creation order). A child receives the
+        // parent's linear function averaged over itself, i.e. its value at the child's area
+        // centroid; the children's area-weighted mean is the parent's mean exactly (their
+        // centroids average to the parent's), so energy is unchanged.
         for u in (self.n..total).rev() {
             let node = self.nodes[u];
             let gu = g[u];
             for &c in &self.children[node.first as usize..(node.first + node.count) as usize] {
+                let offset = self.nodes[c as usize].surface.centroid - node.surface.centroid;
+                let gc = &mut g[c as usize];
                 for band in 0..B {
-                    g[c as usize][band] += gu[band];
+                    gc.mean[band] += gu.mean[band] + gu.gradient[band].dot(offset);
+                    gc.gradient[band] += gu.gradient[band];
                 }
             }
         }
-        y[..self.n].copy_from_slice(&g[..self.n]);
+        for (yk, gk) in y[..self.n].iter_mut().zip(&g[..self.n]) {
+            *yk = gk.mean;
+        }
+    }
+}
+
+fn vec3(v: [f32; 3]) -> DVec3 {
+    DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]))
+}
+
+/// What the links deliver to one node: mean irradiance and its gradient per band.
+#[derive(Clone, Copy, Debug)]
+struct Delivered<const B: usize> {
+    mean: [f64; B],
+    gradient: [DVec3; B],
+}
+
+impl<const B: usize> Default for Delivered<B> {
+    fn default() -> Self {
+        Delivered {
+            mean: [0.0; B],
+            gradient: [DVec3::ZERO; B],
+        }
     }
 }
 
@@ -576,7 +656,9 @@ impl Linker<'_> {
         } else {
             0.0
         };
-        link.k = link.g * link.variation + link.g0 * uncertainty;
+        link.k = link
+            .fit
+            .map(|fit| link.g * f64::from(fit) + link.g0 * uncertainty);
         link.final_value = true;
         link
     }
@@ -589,20 +671,25 @@ impl Linker<'_> {
         Some(out)
     }
 
-    /// The BF error of a link between p and q with error factor `k`: the larger over its two
-    /// receivers of `ρ_r B_s k / A_r`.
-    fn error(&self, p: u32, q: u32, k: f64) -> f64 {
+    /// The BF error of a link between p and q with error factors `k` (for receiver p, then
+    /// q): the larger over its two receivers of `ρ_r B_s k_r / A_r`.
+    fn error(&self, p: u32, q: u32, k: [f64; 2]) -> f64 {
         let (p, q) = (p as usize, q as usize);
-        (self.rho[p] * self.b[q] * k / self.nodes[p].surface.area)
-            .max(self.rho[q] * self.b[p] * k / self.nodes[q].surface.area)
+        (self.rho[p] * self.b[q] * k[0] / self.nodes[p].surface.area)
+            .max(self.rho[q] * self.b[p] * k[1] / self.nodes[q].surface.area)
+    }
+
+    /// Whether both receivers' error is within ε.
+    fn acceptable(&self, link: &Link) -> bool {
+        let error = self.error(link.p, link.q, link.k);
+        error <= self.epsilon || error.is_nan()
     }
 
     /// Which node to split (HSA91: the larger), with the other and whether the split one is
     /// `p`; `None` when the link meets the tolerance or both ends are elements.
     fn split(&self, link: &Link) -> Option<(u32, u32, bool)> {
         let (np, nq) = (&self.nodes[link.p as usize], &self.nodes[link.q as usize]);
-        let error = self.error(link.p, link.q, link.k);
-        if error <= self.epsilon || error.is_nan() {
+        if self.acceptable(link) {
             return None;
         }
         let (split_p, split_q) = (np.count > 0, nq.count > 0);
@@ -622,7 +709,9 @@ impl Linker<'_> {
         if np.polygon == nq.polygon {
             return None;
         }
-        let screen = surface_screen(&np.surface, &nq.surface)?;
+        // An element's own variation does not matter: it receives the exact average over
+        // itself, and as a source its radiosity is constant.
+        let screen = surface_screen(&np.surface, &nq.surface, [np.count > 0, nq.count > 0])?;
         let c = self.counters;
         c.pairs_evaluated.fetch_add(1, Ordering::Relaxed);
         // A node straddling the other's plane was clipped to its front part, but the link
@@ -632,7 +721,12 @@ impl Linker<'_> {
         // A pair that would be kept even if it were fully uncertain gets rays without the
         // occludability test: the test would only save its few rays, and far pairs (most of
         // the polygon pairs of a large scene) are nearly always occludable.
-        let worst = self.error(p, q, screen.rough * (screen.variation + 1.0));
+        // Per receiver: what a linear model of the kernel misses over the receiver and over
+        // the source (B may vary over the source as much as B itself: the conservative
+        // assumption).
+        let [sp, sq] = screen.sides;
+        let fit = [sp.residual + sq.residual; 2];
+        let worst = self.error(p, q, fit.map(|f| screen.rough * (f + 1.0)));
         if parent_occludable && worst <= self.epsilon {
             occludable = true;
         } else if parent_occludable {
@@ -646,15 +740,17 @@ impl Linker<'_> {
         // link is fully visible and fully uncertain: the largest error it can have.
         let uncertainty = if clipped || occludable { 1.0 } else { 0.0 };
         let g = screen.rough;
+        let gradient = [sp.gradient, sq.gradient].map(|v| v.as_vec3().to_array());
         Some(Link {
             p,
             q,
             g,
-            k: g * screen.variation + g * uncertainty,
+            k: fit.map(|f| g * (f + uncertainty)),
             occludable,
             clipped,
             g0: g,
-            variation: screen.variation,
+            fit: fit.map(|f| f as f32),
+            gradient,
             final_value: false,
         })
     }
@@ -735,21 +831,27 @@ fn assemble(nodes: &[Node], links: &[Link]) -> Entries {
     let mut fill: Vec<u64> = offsets[..total].to_vec();
     let mut sources = vec![0u32; entries];
     let mut coefficients = vec![0.0f64; entries];
+    let mut gradients = vec![[[0.0f32; 3]; 2]; entries];
     for l in links {
-        let (p, q) = (l.p as usize, l.q as usize);
-        let k = fill[p] as usize;
-        sources[k] = l.q;
-        coefficients[k] = l.g / nodes[p].surface.area;
-        fill[p] += 1;
-        let k = fill[q] as usize;
-        sources[k] = l.p;
-        coefficients[k] = l.g / nodes[q].surface.area;
-        fill[q] += 1;
+        // The gradient was fitted to the unoccluded kernel: scale it by the visible fraction.
+        let visible = if l.g0 > 0.0 { (l.g / l.g0) as f32 } else { 0.0 };
+        for (side, (r, s)) in [(l.p, l.q), (l.q, l.p)].into_iter().enumerate() {
+            let k = fill[r as usize] as usize;
+            let area = nodes[r as usize].surface.area;
+            sources[k] = s;
+            coefficients[k] = l.g / area;
+            gradients[k] = [
+                l.gradient[side].map(|v| v * visible),
+                l.gradient[1 - side].map(|v| v * visible),
+            ];
+            fill[r as usize] += 1;
+        }
     }
     Entries {
         offsets,
         sources,
         coefficients,
+        gradients,
     }
 }
 
@@ -836,6 +938,16 @@ impl Tree<'_> {
             Surface { area, ..c }
         });
         surface.area = area;
+        // The children's area-weighted centroid (equal to the corners' up to rounding), so that
+        // pushing a linear function to the children keeps its mean exactly.
+        surface.centroid = kids
+            .iter()
+            .map(|&c| {
+                let s = &self.nodes[c as usize].surface;
+                s.centroid * s.area
+            })
+            .sum::<DVec3>()
+            / area;
         let first = self.children.len() as u32;
         self.children.extend_from_slice(kids);
         self.nodes.push(Node {

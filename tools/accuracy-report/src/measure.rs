@@ -601,7 +601,7 @@ mod tests {
             dense_error.rms, dense_error.max
         );
         let mut previous = f64::INFINITY;
-        for t in [1e-2, 1e-3, 3e-4] {
+        for t in [1e-3, 1e-4, 3e-5] {
             let (h, s) = bake(bake_core::TransportKind::Hierarchical, Some(t));
             let e = element_errors(&Field::new(&h.mesh, &h.solution.b), &reference, &cube);
             println!(
