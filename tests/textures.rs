@@ -226,3 +226,228 @@ fn grey_texture_on_a_grey_factor_is_still_one_band() {
         "one LU for the three bands"
     );
 }
+
+/// The floor of [`floor_scene`] textured with a 16 × 16 pattern (no black texels, so every
+/// element reflects), `KHR_texture_transform` on its base colour, a normal map and an
+/// occlusion texture (which the outputs must drop).
+fn asset_scene() -> (Value, Vec<u8>) {
+    let pattern = png(16, 16, |x, y| {
+        [
+            (60 + 12 * x) as u8,
+            (250 - 9 * y) as u8,
+            (90 + 5 * (x ^ y)) as u8,
+        ]
+    });
+    let mut doc = floor_scene([0.9, 0.8, 0.7], Some((pattern.clone(), true)));
+    let flat_normal = png(4, 4, |_, _| [128, 128, 255]);
+    doc["images"]
+        .as_array_mut()
+        .expect("images")
+        .push(json!({ "uri": format!("data:image/png;base64,{}", common::base64(&flat_normal)) }));
+    doc["textures"]
+        .as_array_mut()
+        .expect("textures")
+        .push(json!({ "source": 1 }));
+    let floor = &mut doc["materials"][0];
+    floor["pbrMetallicRoughness"]["baseColorTexture"]["extensions"] = json!({
+        "KHR_texture_transform": { "offset": [0.25, 0.0], "scale": [2.0, 2.0] } });
+    floor["normalTexture"] = json!({ "index": 1 });
+    floor["occlusionTexture"] = json!({ "index": 1 });
+    doc["extensionsUsed"] = json!(["KHR_texture_transform"]);
+    (doc, pattern)
+}
+
+/// The floor's TEXCOORD_0 at a point, from the scene's construction.
+fn floor_uv(p: [f64; 3]) -> [f64; 2] {
+    [(p[0] + 5.0) / 10.0, (p[2] + 5.0) / 10.0]
+}
+
+/// The floor element of `report` whose square holds `p` (floor elements are axis-aligned
+/// squares).
+fn element_holding(report: &Report, p: [f64; 3]) -> Option<&exporter::report::ElementEntry> {
+    floor_of(report).into_iter().find(|e| {
+        let h = e.area.sqrt() / 2.0 + 1e-9;
+        (p[0] - e.centroid[0]).abs() <= h && (p[2] - e.centroid[2]).abs() <= h
+    })
+}
+
+/// The bytes of image 0 of a re-read document.
+fn image_bytes(document: &gltf::Document, buffers: &[gltf::buffer::Data], k: usize) -> Vec<u8> {
+    let image = document.images().nth(k).expect("an image");
+    let gltf::image::Source::View { view, mime_type } = image.source() else {
+        panic!("image {k} is not embedded");
+    };
+    assert_eq!(mime_type, "image/png");
+    let data = &buffers[view.buffer().index()];
+    data[view.offset()..view.offset() + view.length()].to_vec()
+}
+
+#[test]
+fn both_outputs_keep_the_textured_material_and_its_uvs() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (doc, pattern) = asset_scene();
+    let input = dir.path().join("asset.gltf");
+    write_json(&input, &doc);
+    let exposure = 2.0;
+    let mut files = Vec::new();
+    for container in ["gltf", "glb"] {
+        let out = dir.path().join(format!("out.{container}"));
+        let report_path = dir.path().join(format!("out-{container}.json"));
+        bake([
+            "--quiet".as_ref(),
+            "--shading".as_ref(),
+            "flat".as_ref(),
+            "--exposure".as_ref(),
+            "2".as_ref(),
+            input.as_os_str(),
+            out.as_os_str(),
+            "--report".as_ref(),
+            report_path.as_os_str(),
+        ])
+        .success();
+        let report = exporter::report::read_report(&report_path).expect("the report");
+        // H from the report is (b − e) / ρ, independently of how the bake computed it.
+        for e in floor_of(&report) {
+            let h = e.h.expect("the report's H");
+            for c in 0..3 {
+                let expected = (e.b[c] - e.e[c]) / e.rho[c];
+                assert!(
+                    (h[c] - expected).abs() <= 1e-9 * expected.abs(),
+                    "{h:?} vs {expected}"
+                );
+            }
+        }
+
+        // The vertex bake.
+        let (document, buffers, _) = gltf::import(&out).expect("re-read the vertex bake");
+        let mut floor_vertices = 0;
+        let mut panel_vertices = 0;
+        for mesh in document.meshes() {
+            for primitive in mesh.primitives() {
+                let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
+                let positions: Vec<[f32; 3]> = reader.read_positions().expect("POSITION").collect();
+                let colours: Vec<[f32; 3]> = reader
+                    .read_colors(0)
+                    .expect("COLOR_0")
+                    .into_rgb_f32()
+                    .collect();
+                let material = primitive.material();
+                assert!(material.unlit());
+                let pbr = material.pbr_metallic_roughness();
+                match reader.read_tex_coords(0) {
+                    Some(uv) => {
+                        // The floor: its material, texture and transform kept.
+                        assert_eq!(pbr.base_color_factor(), [0.9, 0.8, 0.7, 1.0]);
+                        let info = pbr.base_color_texture().expect("baseColorTexture");
+                        assert_eq!(info.tex_coord(), 0);
+                        let transform = info.texture_transform().expect("the transform");
+                        assert_eq!(transform.offset(), [0.25, 0.0]);
+                        assert_eq!(transform.scale(), [2.0, 2.0]);
+                        let k = info.texture().source().index();
+                        assert_eq!(image_bytes(&document, &buffers, k), pattern);
+                        let uv: Vec<[f32; 2]> = uv.into_f32().collect();
+                        for (p, uv) in positions.iter().zip(&uv) {
+                            let p = p.map(f64::from);
+                            let expected = floor_uv(p);
+                            for a in 0..2 {
+                                assert!((f64::from(uv[a]) - expected[a]).abs() < 1e-6);
+                            }
+                            floor_vertices += 1;
+                        }
+                        // Flat: each triangle is one element; its COLOR_0 is clamp(H × exposure).
+                        let indices: Vec<u32> =
+                            reader.read_indices().expect("indices").into_u32().collect();
+                        for t in indices.chunks(3) {
+                            let centre = (0..3)
+                                .map(|a| {
+                                    t.iter()
+                                        .map(|&i| f64::from(positions[i as usize][a]))
+                                        .sum::<f64>()
+                                        / 3.0
+                                })
+                                .collect::<Vec<_>>();
+                            let element =
+                                element_holding(&report, [centre[0], centre[1], centre[2]])
+                                    .expect("the element under a triangle");
+                            for &i in t {
+                                for (c, got) in colours[i as usize].iter().enumerate() {
+                                    let h = (element.b[c] - element.e[c]) / element.rho[c];
+                                    let expected = (h * exposure).clamp(0.0, 1.0);
+                                    let got = f64::from(*got);
+                                    assert!((got - expected).abs() <= 1e-6, "{got} vs {expected}");
+                                }
+                            }
+                        }
+                    }
+                    None => {
+                        // The untextured emitter: COLOR_0 = clamp(b × exposure), white.
+                        assert_eq!(pbr.base_color_factor(), [1.0; 4]);
+                        assert!(pbr.base_color_texture().is_none());
+                        for colour in &colours {
+                            assert_eq!(*colour, [1.0; 3], "e = 1 at exposure 2 saturates");
+                        }
+                        panel_vertices += positions.len();
+                    }
+                }
+            }
+        }
+        assert!(floor_vertices > 100 && panel_vertices > 0);
+
+        // The lightmap bake: the whole material, minus the occlusion texture.
+        let side = dir.path().join(format!("out.lightmap.{container}"));
+        let (document, buffers, _) = gltf::import(&side).expect("re-read the lightmap bake");
+        let floor = document
+            .materials()
+            .find(|m| m.pbr_metallic_roughness().base_color_texture().is_some())
+            .expect("the floor's material");
+        assert!(!floor.unlit());
+        assert!(floor.normal_texture().is_some(), "the normal map is kept");
+        assert!(
+            floor.occlusion_texture().is_none(),
+            "occlusion would darken twice"
+        );
+        let info = floor
+            .pbr_metallic_roughness()
+            .base_color_texture()
+            .expect("base colour");
+        assert_eq!(info.tex_coord(), 0);
+        assert_eq!(
+            info.texture_transform().expect("transform").offset(),
+            [0.25, 0.0]
+        );
+        let k = info.texture().source().index();
+        assert_eq!(image_bytes(&document, &buffers, k), pattern);
+        let mut checked = 0;
+        for mesh in document.meshes() {
+            for primitive in mesh.primitives() {
+                if primitive.material().index() != Some(floor.index().expect("an index")) {
+                    continue;
+                }
+                let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
+                let positions: Vec<[f32; 3]> = reader.read_positions().expect("POSITION").collect();
+                let uv0: Vec<[f32; 2]> = reader
+                    .read_tex_coords(0)
+                    .expect("TEXCOORD_0")
+                    .into_f32()
+                    .collect();
+                assert!(
+                    reader.read_tex_coords(1).is_some(),
+                    "TEXCOORD_1: the lightmap"
+                );
+                for (p, uv) in positions.iter().zip(&uv0) {
+                    let expected = floor_uv(p.map(f64::from));
+                    for a in 0..2 {
+                        assert!((f64::from(uv[a]) - expected[a]).abs() < 1e-6);
+                    }
+                    checked += 1;
+                }
+            }
+        }
+        assert_eq!(checked, 4, "the floor quad's corners");
+        files.push(out);
+        files.push(side);
+    }
+    if let Some(stdout) = common::validate_clean(&files) {
+        println!("{stdout}");
+    }
+}

@@ -376,27 +376,31 @@ fn build_scene(
     if polygons.is_empty() {
         return Err(ImportError::Empty);
     }
-    let (textures, images) = crate::texture::load(root, buffers, base, &mut materials, &checked)?;
-    let uvs = polygon_uvs(&polygons, &materials, &layout, &cache)?;
+    let loaded = crate::texture::load(root, buffers, base, &mut materials, &checked)?;
+    warnings.extend(loaded.warnings);
+    let uvs = polygon_uvs(&polygons, &materials, &loaded.authored, &layout, &cache)?;
     Ok(Scene {
         polygons,
         materials,
         lights,
-        textures,
-        images,
+        textures: loaded.textures,
+        images: loaded.images,
         uvs,
+        authored: loaded.authored,
         layout,
         stats,
         warnings,
     })
 }
 
-/// Per polygon whose material has a texture: the source triangles it was made of, in world
-/// space, with their texture coordinates. A glTF polygon is source triangle `face`, or the
-/// quad merged from `face` and `face + 1`.
+/// Per polygon whose material has a texture (decoded for ρ/e, or kept for the outputs): the
+/// source triangles it was made of, in world space, with their texture coordinates (every set
+/// the primitive has). A glTF polygon is source triangle `face`, or the quad merged from
+/// `face` and `face + 1`.
 fn polygon_uvs(
     polygons: &[crate::Polygon],
     materials: &[Material],
+    authored: &crate::Authored,
     layout: &Layout,
     cache: &HashMap<(usize, usize), Option<LocalPrimitive>>,
 ) -> Result<Vec<Option<crate::PolygonUv>>, ImportError> {
@@ -408,7 +412,12 @@ fn polygon_uvs(
                 .iter()
                 .filter_map(|t| t.as_ref().map(|t| t.tex_coord))
                 .collect();
-            if sets.is_empty() {
+            let kept = authored
+                .materials
+                .get(p.material)
+                .and_then(Option::as_ref)
+                .map_or([false; 2], crate::texture::authored_sets);
+            if sets.is_empty() && kept == [false; 2] {
                 return Ok(None);
             }
             let o = p.origin;
@@ -416,6 +425,7 @@ fn polygon_uvs(
                 .get(&(o.mesh, o.primitive))
                 .and_then(Option::as_ref)
                 .ok_or_else(|| ImportError::Gltf(format!("mesh {} lost its primitive", o.mesh)))?;
+            let present = [0, 1].map(|set| local.uvs.get(set).is_some_and(Option::is_some));
             let world = layout.nodes[o.node].world;
             let count = if p.vertices.len() == 4 { 2 } else { 1 };
             let mut triangles = Vec::with_capacity(count);
@@ -438,9 +448,17 @@ fn polygon_uvs(
                         })?;
                     uv[set as usize] = t.map(|i| values[i as usize]);
                 }
+                for set in 0..2 {
+                    if let (true, Some(values)) = (present[set], &local.uvs[set]) {
+                        uv[set] = t.map(|i| values[i as usize]);
+                    }
+                }
                 triangles.push(crate::UvTriangle { positions, uv });
             }
-            Ok(Some(crate::PolygonUv { triangles }))
+            Ok(Some(crate::PolygonUv {
+                triangles,
+                sets: present,
+            }))
         })
         .collect()
 }

@@ -21,7 +21,7 @@ mod obj_in;
 mod polygon;
 pub mod texture;
 
-pub use texture::{Image, Texture, TextureRef, Wrap};
+pub use texture::{Authored, AuthoredTexture, EncodedImage, Image, Texture, TextureRef, Wrap};
 
 /// Where a polygon came from, so its results can be written back.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -89,6 +89,39 @@ pub struct UvTriangle {
 #[derive(Clone, Debug, PartialEq)]
 pub struct PolygonUv {
     pub triangles: Vec<UvTriangle>,
+    /// Which TEXCOORD sets (0, 1) the primitive has; the other's `uv` are zeros.
+    pub sets: [bool; 2],
+}
+
+impl PolygonUv {
+    /// TEXCOORD set `set` (0 or 1) at a point of the polygon: the affine map of the source
+    /// triangle that holds it (the one whose smallest barycentric coordinate is largest, so a
+    /// point on a shared edge or just outside by rounding still gets the nearest triangle's
+    /// value). `None` without triangles or when the primitive has no such set.
+    pub fn at(&self, set: usize, point: DVec3) -> Option<glam::DVec2> {
+        if !self.sets.get(set).copied().unwrap_or(false) {
+            return None;
+        }
+        let mut best: Option<(f64, glam::DVec2)> = None;
+        for t in &self.triangles {
+            let [a, b, c] = t.positions;
+            let n = (b - a).cross(c - a);
+            let area = n.length_squared();
+            if area <= 0.0 || !area.is_finite() {
+                continue;
+            }
+            let la = (b - point).cross(c - point).dot(n) / area;
+            let lb = (c - point).cross(a - point).dot(n) / area;
+            let lc = 1.0 - la - lb;
+            let worst = la.min(lb).min(lc);
+            let [ua, ub, uc] = t.uv[set];
+            let uv = ua * la + ub * lb + uc * lc;
+            if best.is_none_or(|(w, _)| worst > w) {
+                best = Some((worst, uv));
+            }
+        }
+        best.map(|(_, uv)| uv)
+    }
 }
 
 /// A node of the input hierarchy, kept so the output has the same structure.
@@ -227,8 +260,11 @@ pub struct Scene {
     /// Textures referenced by materials in use, and their decoded images.
     pub textures: Vec<Texture>,
     pub images: Vec<Image>,
-    /// Per polygon: its texture mapping when its material is textured.
+    /// Per polygon: its texture mapping when its material has a texture in any slot the
+    /// outputs keep (base colour, emissive, metallic-roughness, normal).
     pub uvs: Vec<Option<PolygonUv>>,
+    /// The materials, textures and encoded images as authored, for outputs that keep them.
+    pub authored: Authored,
     pub layout: Layout,
     pub stats: ImportStats,
     /// One line per thing the user should know about (dropped faces, skipped primitives).

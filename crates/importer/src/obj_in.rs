@@ -411,6 +411,7 @@ fn build_scene(
         textures: Vec::new(),
         images: Vec::new(),
         uvs: vec![None; polygon_count],
+        authored: Default::default(),
         layout,
         stats,
         warnings,

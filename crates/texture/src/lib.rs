@@ -261,6 +261,7 @@ mod tests {
         };
         PolygonUv {
             triangles: vec![t(0, 1, 2), t(0, 2, 3)],
+            sets: [true; 2],
         }
     }
 
