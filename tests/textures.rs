@@ -282,6 +282,27 @@ fn image_bytes(document: &gltf::Document, buffers: &[gltf::buffer::Data], k: usi
     data[view.offset()..view.offset() + view.length()].to_vec()
 }
 
+/// Bakes `input` to `out` (`--target target`, flat shading, exposure 2) and returns the
+/// report (written beside `out`).
+fn bake_flat(input: &std::path::Path, out: &std::path::Path, target: &str) -> Report {
+    let report = out.with_extension("report.json");
+    bake([
+        "--quiet".as_ref(),
+        "--target".as_ref(),
+        target.as_ref(),
+        "--shading".as_ref(),
+        "flat".as_ref(),
+        "--exposure".as_ref(),
+        "2".as_ref(),
+        input.as_os_str(),
+        out.as_os_str(),
+        "--report".as_ref(),
+        report.as_os_str(),
+    ])
+    .success();
+    exporter::report::read_report(&report).expect("the report")
+}
+
 #[test]
 fn both_outputs_keep_the_textured_material_and_its_uvs() {
     let dir = tempfile::tempdir().expect("a temporary directory");
@@ -292,20 +313,7 @@ fn both_outputs_keep_the_textured_material_and_its_uvs() {
     let mut files = Vec::new();
     for container in ["gltf", "glb"] {
         let out = dir.path().join(format!("out.{container}"));
-        let report_path = dir.path().join(format!("out-{container}.json"));
-        bake([
-            "--quiet".as_ref(),
-            "--shading".as_ref(),
-            "flat".as_ref(),
-            "--exposure".as_ref(),
-            "2".as_ref(),
-            input.as_os_str(),
-            out.as_os_str(),
-            "--report".as_ref(),
-            report_path.as_os_str(),
-        ])
-        .success();
-        let report = exporter::report::read_report(&report_path).expect("the report");
+        let report = bake_flat(&input, &out, "both");
         // H from the report is (b − e) / ρ, independently of how the bake computed it.
         for e in floor_of(&report) {
             let h = e.h.expect("the report's H");
@@ -450,4 +458,63 @@ fn both_outputs_keep_the_textured_material_and_its_uvs() {
     if let Some(stdout) = common::validate_clean(&files) {
         println!("{stdout}");
     }
+}
+
+/// [`asset_scene`]'s pattern texel at a floor point, linear: nearest filter, the transform
+/// uv' = (2u + 0.25, 2v), repeat; with the distance (in texels) to the nearest texel border.
+fn asset_texel(p: [f64; 3]) -> ([f64; 3], f64) {
+    let [u, v] = floor_uv(p);
+    let (x, y) = (
+        (2.0 * u + 0.25).rem_euclid(1.0) * 16.0,
+        (2.0 * v).rem_euclid(1.0) * 16.0,
+    );
+    let border = [x - x.floor(), x.ceil() - x, y - y.floor(), y.ceil() - y]
+        .into_iter()
+        .fold(f64::INFINITY, f64::min);
+    let (x, y) = (x.floor() as u32, y.floor() as u32);
+    let srgb = [60 + 12 * x, 250 - 9 * y, 90 + 5 * (x ^ y)];
+    (srgb.map(|c| srgb_to_linear(f64::from(c) / 255.0)), border)
+}
+
+#[test]
+fn preview_shows_factor_times_texture_times_colour() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (doc, _) = asset_scene();
+    let input = dir.path().join("asset.gltf");
+    write_json(&input, &doc);
+    let out = dir.path().join("out.gltf");
+    let report = bake_flat(&input, &out, "vertex");
+    let options = preview::Options {
+        width: 400,
+        height: 400,
+        view: Some([0.0, -1.0, 0.0]),
+        ..Default::default()
+    };
+    let picture = preview::render_file(&out, &options).expect("render the bake");
+    let factor = [0.9, 0.8, 0.7];
+    let mut checked = 0;
+    for e in floor_of(&report) {
+        let (texel, border) = asset_texel(e.centroid);
+        // A pixel centre lies within a pixel (~0.03 m, 0.05 texel) of the centroid.
+        if border < 0.2 {
+            continue;
+        }
+        let [x, y] = picture
+            .camera
+            .project(e.centroid, options.width, options.height)
+            .expect("the floor is in view");
+        let pixel = picture.image.get_pixel(x as u32, y as u32).0;
+        for c in 0..3 {
+            let h = (e.b[c] - e.e[c]) / e.rho[c];
+            let expected = factor[c] * texel[c] * (h * 2.0).clamp(0.0, 1.0);
+            let expected = preview::srgb8(expected);
+            assert!(
+                pixel[c].abs_diff(expected) <= 1,
+                "element at {:?}: pixel {pixel:?} vs {expected} in band {c}",
+                e.centroid
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked > 30, "{checked} elements checked");
 }
