@@ -271,6 +271,22 @@ fn element_holding(report: &Report, p: [f64; 3]) -> Option<&exporter::report::El
     })
 }
 
+/// A re-read primitive's POSITION and COLOR_0.
+fn positions_and_colours<'a, 's, F>(
+    reader: &gltf::mesh::Reader<'a, 's, F>,
+) -> (Vec<[f32; 3]>, Vec<[f32; 3]>)
+where
+    F: Clone + Fn(gltf::Buffer<'a>) -> Option<&'s [u8]>,
+{
+    let positions = reader.read_positions().expect("POSITION").collect();
+    let colours = reader
+        .read_colors(0)
+        .expect("COLOR_0")
+        .into_rgb_f32()
+        .collect();
+    (positions, colours)
+}
+
 /// The bytes of image 0 of a re-read document.
 fn image_bytes(document: &gltf::Document, buffers: &[gltf::buffer::Data], k: usize) -> Vec<u8> {
     let image = document.images().nth(k).expect("an image");
@@ -333,12 +349,7 @@ fn both_outputs_keep_the_textured_material_and_its_uvs() {
         for mesh in document.meshes() {
             for primitive in mesh.primitives() {
                 let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
-                let positions: Vec<[f32; 3]> = reader.read_positions().expect("POSITION").collect();
-                let colours: Vec<[f32; 3]> = reader
-                    .read_colors(0)
-                    .expect("COLOR_0")
-                    .into_rgb_f32()
-                    .collect();
+                let (positions, colours) = positions_and_colours(&reader);
                 let material = primitive.material();
                 assert!(material.unlit());
                 let pbr = material.pbr_metallic_roughness();
@@ -517,4 +528,119 @@ fn preview_shows_factor_times_texture_times_colour() {
         checked += 1;
     }
     assert!(checked > 30, "{checked} elements checked");
+}
+
+/// Adds COLOR_0 to [`floor_scene`]'s floor: red (x + 5) / 10, green 1, blue 0.5 (linear in
+/// x, so its mean over any element is its value at the element's centroid).
+fn with_floor_colours(mut doc: Value) -> Value {
+    let colours: [[f32; 3]; 4] = [
+        [0.0, 1.0, 0.5],
+        [0.0, 1.0, 0.5],
+        [1.0, 1.0, 0.5],
+        [1.0, 1.0, 0.5],
+    ];
+    let bytes = common::position_bytes(&colours);
+    doc["buffers"]
+        .as_array_mut()
+        .expect("buffers")
+        .push(json!({ "byteLength": bytes.len(), "uri": data_uri(&bytes) }));
+    doc["bufferViews"]
+        .as_array_mut()
+        .expect("views")
+        .push(json!({ "buffer": 1, "byteLength": bytes.len() }));
+    let view = doc["bufferViews"].as_array().map_or(0, Vec::len) - 1;
+    doc["accessors"]
+        .as_array_mut()
+        .expect("accessors")
+        .push(json!({ "bufferView": view, "componentType": 5126, "count": 4, "type": "VEC3" }));
+    let accessor = doc["accessors"].as_array().map_or(0, Vec::len) - 1;
+    doc["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = json!(accessor);
+    doc
+}
+
+#[test]
+fn input_vertex_colours_multiply_rho_exactly() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    // 0.5 is exact in the file's f32.
+    let factor = 0.5;
+    let colour = |p: [f64; 3]| [(p[0] + 5.0) / 10.0, 1.0, 0.5];
+    for textured in [false, true] {
+        let texture = textured.then(|| (png(4, 4, |_, _| [255; 3]), true));
+        let doc = with_floor_colours(floor_scene([factor; 3], texture));
+        let input = dir.path().join(format!("colours-{textured}.gltf"));
+        write_json(&input, &doc);
+        let out = dir.path().join(format!("colours-{textured}.gltf-out.gltf"));
+        let report = bake_flat(&input, &out, "both");
+        let floor = floor_of(&report);
+        assert!(floor.len() > 50);
+        for e in &floor {
+            for (k, c) in colour(e.centroid).iter().enumerate() {
+                let expected = factor * c;
+                assert!(
+                    (e.rho[k] - expected).abs() <= 1e-9,
+                    "element at {:?}: ρ {:?} vs {expected}",
+                    e.centroid,
+                    e.rho
+                );
+            }
+        }
+        if textured {
+            // The vertex bake's COLOR_0 is H × the input colour at each vertex, so a viewer's
+            // factor × texture × COLOR_0 still carries the colour.
+            let (document, buffers, _) = gltf::import(&out).expect("re-read");
+            let mut checked = 0;
+            for primitive in document
+                .meshes()
+                .flat_map(|m| m.primitives().collect::<Vec<_>>())
+            {
+                let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
+                if reader.read_tex_coords(0).is_none() {
+                    continue;
+                }
+                let (positions, colours) = positions_and_colours(&reader);
+                let indices: Vec<u32> =
+                    reader.read_indices().expect("indices").into_u32().collect();
+                for t in indices.chunks(3) {
+                    let centre: Vec<f64> = (0..3)
+                        .map(|a| {
+                            t.iter()
+                                .map(|&i| f64::from(positions[i as usize][a]))
+                                .sum::<f64>()
+                                / 3.0
+                        })
+                        .collect();
+                    let e = element_holding(&report, [centre[0], centre[1], centre[2]])
+                        .expect("an element");
+                    for &i in t {
+                        let c = colour(positions[i as usize].map(f64::from));
+                        for k in 0..3 {
+                            let h = (e.b[k] - e.e[k]) / e.rho[k].max(1e-300);
+                            let h = if e.rho[k] > 0.0 {
+                                h
+                            } else {
+                                e.h.expect("H")[k]
+                            };
+                            let expected = (h * 2.0 * c[k]).clamp(0.0, 1.0);
+                            let got = f64::from(colours[i as usize][k]);
+                            assert!((got - expected).abs() <= 1e-6, "{got} vs {expected}");
+                        }
+                    }
+                    checked += 1;
+                }
+            }
+            assert!(checked > 50);
+        }
+        let side = out.with_file_name(format!("colours-{textured}.gltf-out.lightmap.gltf"));
+        let (document, _, _) = gltf::import(&side).expect("re-read the lightmap bake");
+        let floor_primitives = document
+            .meshes()
+            .flat_map(|m| m.primitives().collect::<Vec<_>>())
+            .filter(|p| p.get(&gltf::Semantic::Colors(0)).is_some())
+            .count();
+        assert_eq!(
+            floor_primitives, 1,
+            "the lightmap bake keeps the floor's COLOR_0"
+        );
+        common::validate_clean(&[out, side]);
+    }
 }

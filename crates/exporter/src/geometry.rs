@@ -412,6 +412,12 @@ impl<'a> PrimitiveWriter<'a> {
                 texcoords.push(uv);
             }
         }
+        // A viewer multiplies the texture by COLOR_0 only: the input's own vertex colour
+        // (part of ρ) goes into it with H.
+        let shown = match (self.colour, self.input_colour(element, world)) {
+            (ColourSource::Irradiance { .. }, Some(c)) => [0, 1, 2].map(|k| shown[k] * c[k]),
+            _ => shown,
+        };
         let attributes = [
             ("POSITION", to_f32(self.space.position(world).to_array())),
             ("NORMAL", to_f32(normal.to_array())),
@@ -437,6 +443,17 @@ impl<'a> PrimitiveWriter<'a> {
         self.data.colors.push(color);
         self.data.radiosity.push(radiosity);
         Ok(output)
+    }
+
+    /// The input's `COLOR_0` at a point of `element`'s polygon, if it had one.
+    fn input_colour(&self, element: usize, world: DVec3) -> Option<DVec3> {
+        let polygon = self.bake.mesh.elements[element].polygon as usize;
+        self.bake
+            .scene
+            .uvs
+            .get(polygon)
+            .and_then(Option::as_ref)
+            .and_then(|uv| uv.color_at(world))
     }
 
     fn push_triangle(&mut self, a: u32, b: u32, c: u32) {

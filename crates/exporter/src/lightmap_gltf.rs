@@ -471,6 +471,8 @@ struct PrimitiveData {
     input_uv1: Option<Vec<[f32; 2]>>,
     /// Unit tangents with handedness, when the material has a normal map.
     tangents: Option<Vec<[f32; 4]>>,
+    /// The input's COLOR_0 (a lit viewer multiplies the base colour by it, as the bake did).
+    colors: Option<Vec<[f32; 3]>>,
     indices: Vec<u32>,
 }
 
@@ -498,6 +500,17 @@ fn primitive_data(
         input_uv0: has_set(0).then(Vec::new),
         input_uv1: (second_set && has_set(1)).then(Vec::new),
         tangents: needs.normal_set.map(|_| Vec::new()),
+        colors: polygons
+            .iter()
+            .all(|&p| {
+                scene
+                    .uvs
+                    .get(p)
+                    .and_then(Option::as_ref)
+                    .and_then(|uv| uv.triangles.first())
+                    .is_some_and(|t| t.color.is_some())
+            })
+            .then(Vec::new),
         indices: Vec::new(),
     };
     if second_set && data.input_uv1.is_none() {
@@ -523,6 +536,12 @@ fn primitive_data(
             data.normals.push(normal.to_array().map(|x| x as f32));
             data.texcoords.push(lightmap.texcoord(p, k));
             let uv = scene.uvs.get(p).and_then(Option::as_ref);
+            if let Some(colors) = data.colors.as_mut() {
+                let c = uv.and_then(|uv| uv.color_at(*vertex)).ok_or_else(|| {
+                    ExportError::InvalidData(format!("polygon {p} has no COLOR_0"))
+                })?;
+                colors.push(c.to_array().map(|x| x.clamp(0.0, 1.0) as f32));
+            }
             for (set, out) in [(0, &mut data.input_uv0), (1, &mut data.input_uv1)] {
                 if let Some(out) = out.as_mut() {
                     let value = uv.and_then(|uv| uv.at(set, *vertex)).ok_or_else(|| {
@@ -588,6 +607,10 @@ fn add_primitive(
     if let Some(uv) = &data.input_uv1 {
         let uv2 = writer.add_vec2(uv);
         attributes.insert(Checked::Valid(Semantic::TexCoords(2)), uv2);
+    }
+    if let Some(colors) = &data.colors {
+        let color = writer.add_vec3(colors, false);
+        attributes.insert(Checked::Valid(Semantic::Colors(0)), color);
     }
     if let Some(tangents) = &data.tangents {
         let tangent = writer.add_vec4(tangents);

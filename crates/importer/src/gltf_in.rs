@@ -393,9 +393,9 @@ fn build_scene(
     })
 }
 
-/// Per polygon whose material has a texture (decoded for ρ/e, or kept for the outputs): the
-/// source triangles it was made of, in world space, with their texture coordinates (every set
-/// the primitive has). A glTF polygon is source triangle `face`, or the quad merged from
+/// Per polygon whose material has a texture (decoded for ρ/e, or kept for the outputs) or
+/// whose primitive has COLOR_0: the source triangles it was made of, in world space, with
+/// their texture coordinates (every set the primitive has) and colours. A glTF polygon is source triangle `face`, or the quad merged from
 /// `face` and `face + 1`.
 fn polygon_uvs(
     polygons: &[crate::Polygon],
@@ -417,14 +417,14 @@ fn polygon_uvs(
                 .get(p.material)
                 .and_then(Option::as_ref)
                 .map_or([false; 2], crate::texture::authored_sets);
-            if sets.is_empty() && kept == [false; 2] {
-                return Ok(None);
-            }
             let o = p.origin;
             let local = cache
                 .get(&(o.mesh, o.primitive))
                 .and_then(Option::as_ref)
                 .ok_or_else(|| ImportError::Gltf(format!("mesh {} lost its primitive", o.mesh)))?;
+            if sets.is_empty() && kept == [false; 2] && local.colors.is_none() {
+                return Ok(None);
+            }
             let present = [0, 1].map(|set| local.uvs.get(set).is_some_and(Option::is_some));
             let world = layout.nodes[o.node].world;
             let count = if p.vertices.len() == 4 { 2 } else { 1 };
@@ -453,7 +453,15 @@ fn polygon_uvs(
                         uv[set] = t.map(|i| values[i as usize]);
                     }
                 }
-                triangles.push(crate::UvTriangle { positions, uv });
+                let color = local
+                    .colors
+                    .as_ref()
+                    .map(|c| t.map(|i| c[i as usize]));
+                triangles.push(crate::UvTriangle {
+                    positions,
+                    uv,
+                    color,
+                });
             }
             Ok(Some(crate::PolygonUv {
                 triangles,
@@ -790,6 +798,8 @@ struct LocalPrimitive {
     triangles: Vec<[u32; 3]>,
     /// TEXCOORD_0 and TEXCOORD_1, where present.
     uvs: Vec<Option<Vec<glam::DVec2>>>,
+    /// COLOR_0 (linear RGB in [0, 1]), where present: it multiplies ρ.
+    colors: Option<Vec<DVec3>>,
 }
 
 impl LocalPrimitive {
@@ -873,10 +883,37 @@ fn read_primitive(
                 .filter(|uv| uv.len() == positions.len())
         })
         .collect();
+    // COLOR_0 multiplies the base colour (glTF 2.0, "Metallic-Roughness Material"), so it
+    // is part of ρ: one that cannot be read, or lies outside [0, 1], is refused.
+    let colors = match primitive
+        .attributes
+        .get(&Checked::Valid(Semantic::Colors(0)))
+    {
+        None => None,
+        Some(a) => {
+            let colors = accessor::read_colors(root, buffers, a.value())
+                .map_err(|e| fail(format!("COLOR_0: {e}")))?;
+            if colors.len() != positions.len() {
+                return Err(fail(format!(
+                    "COLOR_0 has {} values for {} positions",
+                    colors.len(),
+                    positions.len()
+                )));
+            }
+            if let Some(bad) = colors
+                .iter()
+                .find(|c| !c.is_finite() || c.min_element() < 0.0 || c.max_element() > 1.0)
+            {
+                return Err(fail(format!("COLOR_0 value {bad} is outside [0, 1]")));
+            }
+            Some(colors)
+        }
+    };
     Ok(Some(LocalPrimitive {
         positions,
         triangles: triangles(mode, &indices),
         uvs,
+        colors,
     }))
 }
 

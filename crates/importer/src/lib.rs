@@ -82,6 +82,8 @@ pub struct Material {
 pub struct UvTriangle {
     pub positions: [DVec3; 3],
     pub uv: [[glam::DVec2; 3]; 2],
+    /// The corners' `COLOR_0` (linear RGB), when the primitive has one.
+    pub color: Option<[DVec3; 3]>,
 }
 
 /// How a textured polygon maps to texture space: the source triangles that cover it (1, or 2
@@ -102,7 +104,24 @@ impl PolygonUv {
         if !self.sets.get(set).copied().unwrap_or(false) {
             return None;
         }
-        let mut best: Option<(f64, glam::DVec2)> = None;
+        self.interpolate(point, |t| Some(t.uv[set]))
+    }
+
+    /// `COLOR_0` at a point of the polygon (as [`PolygonUv::at`]); `None` without colours.
+    pub fn color_at(&self, point: DVec3) -> Option<DVec3> {
+        self.interpolate(point, |t| t.color)
+    }
+
+    /// The barycentric interpolation of `corners` over the source triangle holding `point`.
+    fn interpolate<T>(
+        &self,
+        point: DVec3,
+        corners: impl Fn(&UvTriangle) -> Option<[T; 3]>,
+    ) -> Option<T>
+    where
+        T: Copy + std::ops::Mul<f64, Output = T> + std::ops::Add<Output = T>,
+    {
+        let mut best: Option<(f64, T)> = None;
         for t in &self.triangles {
             let [a, b, c] = t.positions;
             let n = (b - a).cross(c - a);
@@ -114,13 +133,13 @@ impl PolygonUv {
             let lb = (c - point).cross(a - point).dot(n) / area;
             let lc = 1.0 - la - lb;
             let worst = la.min(lb).min(lc);
-            let [ua, ub, uc] = t.uv[set];
-            let uv = ua * la + ub * lb + uc * lc;
+            let [ua, ub, uc] = corners(t)?;
+            let value = ua * la + ub * lb + uc * lc;
             if best.is_none_or(|(w, _)| worst > w) {
-                best = Some((worst, uv));
+                best = Some((worst, value));
             }
         }
-        best.map(|(_, uv)| uv)
+        best.map(|(_, value)| value)
     }
 }
 
