@@ -532,13 +532,20 @@ fn preview_shows_factor_times_texture_times_colour() {
 
 /// Adds COLOR_0 to [`floor_scene`]'s floor: red (x + 5) / 10, green 1, blue 0.5 (linear in
 /// x, so its mean over any element is its value at the element's centroid).
-fn with_floor_colours(mut doc: Value) -> Value {
-    let colours: [[f32; 3]; 4] = [
-        [0.0, 1.0, 0.5],
-        [0.0, 1.0, 0.5],
-        [1.0, 1.0, 0.5],
-        [1.0, 1.0, 0.5],
-    ];
+fn with_floor_colours(doc: Value) -> Value {
+    with_colours(
+        doc,
+        [
+            [0.0, 1.0, 0.5],
+            [0.0, 1.0, 0.5],
+            [1.0, 1.0, 0.5],
+            [1.0, 1.0, 0.5],
+        ],
+    )
+}
+
+/// [`floor_scene`]'s floor with COLOR_0 = `colours` at its four corners.
+fn with_colours(mut doc: Value, colours: [[f32; 3]; 4]) -> Value {
     let bytes = common::position_bytes(&colours);
     doc["buffers"]
         .as_array_mut()
@@ -643,4 +650,15 @@ fn input_vertex_colours_multiply_rho_exactly() {
         );
         common::validate_clean(&[out, side]);
     }
+}
+
+#[test]
+fn vertex_colours_outside_zero_one_are_refused() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let doc = with_colours(floor_scene([0.5; 3], None), [[1.5, 0.0, 0.0]; 4]);
+    let input = dir.path().join("bright.gltf");
+    write_json(&input, &doc);
+    let run = bake([input.as_os_str(), dir.path().join("o.gltf").as_os_str()]);
+    assert_eq!(run.code, Some(1), "{run:?}");
+    assert!(run.stderr.contains("COLOR_0"), "{}", run.stderr);
 }

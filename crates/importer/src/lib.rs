@@ -320,7 +320,9 @@ pub enum ImportError {
 ///   each mesh once per node that uses it. ρ = `baseColorFactor` rgb, e = `emissiveFactor`
 ///   × `KHR_materials_emissive_strength`; the `baseColorTexture` and `emissiveTexture` of
 ///   materials in use are decoded ([`texture`]; averaged per element by `bake-texture`);
-///   vertex colours are ignored. A
+///   `COLOR_0` (VEC3/VEC4, float or normalized integers, within [0, 1]) multiplies ρ, per
+///   element its exact mean (`bake-texture`). The materials in use are also kept as authored
+///   ([`Scene::authored`]) with the textures and images they use. A
 ///   primitive without a material uses the glTF default material (ρ = 1, e = 0,
 ///   single-sided), appended after the file's materials when some primitive needs it.
 ///   A node whose world matrix is singular (a scale of 0) is skipped with a warning: its
