@@ -662,3 +662,57 @@ fn vertex_colours_outside_zero_one_are_refused() {
     assert_eq!(run.code, Some(1), "{run:?}");
     assert!(run.stderr.contains("COLOR_0"), "{}", run.stderr);
 }
+
+#[test]
+fn obj_map_kd_is_a_base_colour_texture() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    // Image rows 0..32 (the top half, OBJ v > 0.5) black, the rest white.
+    let texture = png(64, 64, |_, y| if y < 32 { [0; 3] } else { [255; 3] });
+    std::fs::write(dir.path().join("half.png"), &texture).expect("write the PNG");
+    common::write_text(
+        &dir.path().join("room.mtl"),
+        "newmtl floor\nKd 0.5 0.5 0.5\nmap_Kd half.png\nnewmtl light\nKd 0 0 0\nKe 1 1 1\n",
+    );
+    let obj = dir.path().join("room.obj");
+    common::write_text(
+        &obj,
+        "mtllib room.mtl\no floor\nusemtl floor\n\
+         v -5 0 -5\nv -5 0 5\nv 5 0 5\nv 5 0 -5\n\
+         vt 0 0\nvt 0 1\nvt 1 1\nvt 1 0\n\
+         f 1/1 2/2 3/3 4/4\n\
+         o light\nusemtl light\nv -1 3 -1\nv 1 3 -1\nv 1 3 1\nv -1 3 1\nf 5 6 7 8\n",
+    );
+    let out = dir.path().join("room-out.gltf");
+    let report = bake_flat(&obj, &out, "both");
+    let (mut black, mut white) = (0, 0);
+    for e in floor_of(&report) {
+        let half = e.area.sqrt() / 2.0;
+        // OBJ v = (z + 5) / 10; v > 0.5 (z > 0) is black. The linear filter blurs one texel
+        // (10 / 64 m) around the edge, and at z = ±5 with the other side (repeat wraps).
+        if e.centroid[2] + half > 4.8 || e.centroid[2] - half < -4.8 {
+            continue;
+        }
+        if e.centroid[2] - half > 0.2 {
+            assert!(e.rho[0].abs() < 1e-12, "{:?} at {:?}", e.rho, e.centroid);
+            black += 1;
+        } else if e.centroid[2] + half < -0.2 {
+            assert!(
+                (e.rho[0] - 0.5).abs() < 1e-6,
+                "{:?} at {:?}",
+                e.rho,
+                e.centroid
+            );
+            white += 1;
+        }
+    }
+    assert!(black > 20 && white > 20, "{black} black, {white} white");
+    let side = dir.path().join("room-out.lightmap.gltf");
+    for path in [&out, &side] {
+        let (document, _, images) = gltf::import(path).expect("re-read");
+        assert_eq!(images.len(), if path == &out { 1 } else { 2 });
+        assert!(document
+            .materials()
+            .any(|m| m.pbr_metallic_roughness().base_color_texture().is_some()));
+    }
+    common::validate_clean(&[out, side]);
+}

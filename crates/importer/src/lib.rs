@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 mod accessor;
 mod gltf_in;
 mod obj_in;
+mod obj_texture;
 mod polygon;
 pub mod texture;
 
@@ -331,8 +332,9 @@ pub enum ImportError {
 ///   used (a singular node transform, a non-finite or negative intensity or colour, a
 ///   non-positive range, spot cones outside 0 ≤ inner < outer ≤ π/2) is skipped with a
 ///   warning naming it.
-/// - OBJ: one mesh (and one identity node) per `tobj` model, all in one scene. ρ = `Kd`,
-///   e = `Ke`, single-sided. A face without a material (no `usemtl`, a missing MTL file or
+/// - OBJ: one mesh (and one identity node) per `tobj` model, all in one scene. ρ = `Kd`
+///   (× the mean of `map_Kd`, PNG or JPEG beside the OBJ, over each element, as a glTF
+///   `baseColorTexture` with the default sampler), e = `Ke`, single-sided. A face without a material (no `usemtl`, a missing MTL file or
 ///   an unknown name) uses a neutral grey default: ρ = 0.8, e = 0, appended after the MTL
 ///   materials when used.
 ///

@@ -296,21 +296,7 @@ impl Loader<'_> {
             return known.clone();
         }
         let made = image_bytes(self.root, self.buffers, self.base, source).and_then(|bytes| {
-            let mime_type = match image::guess_format(&bytes) {
-                Ok(image::ImageFormat::Png) => "image/png",
-                Ok(image::ImageFormat::Jpeg) => "image/jpeg",
-                Ok(format) => {
-                    return Err(format!(
-                        "image {source} is {format:?}: only PNG and JPEG textures are supported"
-                    ))
-                }
-                Err(_) => {
-                    return Err(format!(
-                        "image {source}: not a PNG or JPEG file (KTX2, WebP and others are not \
-                         supported)"
-                    ))
-                }
-            };
+            let mime_type = mime_type(&bytes, &format!("image {source}"))?;
             let name = self.root.images.get(source).and_then(|i| i.name.clone());
             self.authored.images.push(EncodedImage {
                 name,
@@ -416,6 +402,20 @@ impl Loader<'_> {
     }
 }
 
+/// `image/png` or `image/jpeg` for the bytes of `what`, or why they are neither.
+pub(crate) fn mime_type(bytes: &[u8], what: &str) -> Result<&'static str, String> {
+    match image::guess_format(bytes) {
+        Ok(image::ImageFormat::Png) => Ok("image/png"),
+        Ok(image::ImageFormat::Jpeg) => Ok("image/jpeg"),
+        Ok(format) => Err(format!(
+            "{what} is {format:?}: only PNG and JPEG textures are supported"
+        )),
+        Err(_) => Err(format!(
+            "{what}: not a PNG or JPEG file (KTX2, WebP and others are not supported)"
+        )),
+    }
+}
+
 /// The TEXCOORD sets the kept textures of an authored material use (after
 /// `KHR_texture_transform`'s override), as flags for sets 0 and 1.
 pub fn authored_sets(material: &serde_json::Value) -> [bool; 2] {
@@ -501,7 +501,7 @@ fn image_bytes(
 
 /// Decodes PNG or JPEG `bytes` (checked by [`Loader::authored_image`]) of file image
 /// `source` to linear texels.
-fn decode_image(bytes: &[u8], source: usize) -> Result<Image, String> {
+pub(crate) fn decode_image(bytes: &[u8], source: usize) -> Result<Image, String> {
     let format = image::guess_format(bytes)
         .map_err(|_| format!("image {source}: not a PNG or JPEG file"))?;
     let reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
