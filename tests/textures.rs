@@ -287,6 +287,27 @@ where
     (positions, colours)
 }
 
+/// POSITION, COLOR_0 and indices of every primitive of a re-read vertex bake that has
+/// TEXCOORD_0 (the textured ones).
+type PrimitiveArrays = (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<u32>);
+
+fn textured_primitives(path: &std::path::Path) -> Vec<PrimitiveArrays> {
+    let (document, buffers, _) = gltf::import(path).expect("re-read the vertex bake");
+    let mut out = Vec::new();
+    for mesh in document.meshes() {
+        for primitive in mesh.primitives() {
+            let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
+            if reader.read_tex_coords(0).is_none() {
+                continue;
+            }
+            let (positions, colours) = positions_and_colours(&reader);
+            let indices = reader.read_indices().expect("indices").into_u32().collect();
+            out.push((positions, colours, indices));
+        }
+    }
+    out
+}
+
 /// The bytes of image 0 of a re-read document.
 fn image_bytes(document: &gltf::Document, buffers: &[gltf::buffer::Data], k: usize) -> Vec<u8> {
     let image = document.images().nth(k).expect("an image");
@@ -594,19 +615,8 @@ fn input_vertex_colours_multiply_rho_exactly() {
         if textured {
             // The vertex bake's COLOR_0 is H × the input colour at each vertex, so a viewer's
             // factor × texture × COLOR_0 still carries the colour.
-            let (document, buffers, _) = gltf::import(&out).expect("re-read");
             let mut checked = 0;
-            for primitive in document
-                .meshes()
-                .flat_map(|m| m.primitives().collect::<Vec<_>>())
-            {
-                let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
-                if reader.read_tex_coords(0).is_none() {
-                    continue;
-                }
-                let (positions, colours) = positions_and_colours(&reader);
-                let indices: Vec<u32> =
-                    reader.read_indices().expect("indices").into_u32().collect();
+            for (positions, colours, indices) in textured_primitives(&out) {
                 for t in indices.chunks(3) {
                     let centre: Vec<f64> = (0..3)
                         .map(|a| {
@@ -714,5 +724,54 @@ fn obj_map_kd_is_a_base_colour_texture() {
             .materials()
             .any(|m| m.pbr_metallic_roughness().base_color_texture().is_some()));
     }
+    common::validate_clean(&[out, side]);
+}
+
+#[test]
+fn smooth_textured_bake_averages_h_to_vertices() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (doc, _) = asset_scene();
+    let input = dir.path().join("asset.gltf");
+    write_json(&input, &doc);
+    let out = dir.path().join("smooth.gltf");
+    let report_path = dir.path().join("smooth.json");
+    bake([
+        "--quiet".as_ref(),
+        "--exposure".as_ref(),
+        "2".as_ref(),
+        input.as_os_str(),
+        out.as_os_str(),
+        "--report".as_ref(),
+        report_path.as_os_str(),
+    ])
+    .success();
+    let report = exporter::report::read_report(&report_path).expect("the report");
+    // A smoothed vertex value is an area-weighted mean of the floor elements' H: within
+    // their range, band by band.
+    let floor = floor_of(&report);
+    let range: Vec<(f64, f64)> = (0..3)
+        .map(|c| {
+            let h = floor.iter().map(|e| e.h.expect("H")[c] * 2.0);
+            (
+                h.clone().fold(f64::INFINITY, f64::min),
+                h.fold(0.0, f64::max),
+            )
+        })
+        .collect();
+    let mut vertices = 0;
+    for (_, colours, _) in textured_primitives(&out) {
+        for colour in colours {
+            for (c, (lo, hi)) in range.iter().enumerate() {
+                let v = f64::from(colour[c]);
+                assert!(
+                    v >= lo.min(1.0) - 1e-6 && v <= hi.min(1.0) + 1e-6,
+                    "{v} vs {lo}..{hi}"
+                );
+            }
+            vertices += 1;
+        }
+    }
+    assert!(vertices > 100);
+    let side = dir.path().join("smooth.lightmap.gltf");
     common::validate_clean(&[out, side]);
 }
