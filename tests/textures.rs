@@ -775,3 +775,45 @@ fn smooth_textured_bake_averages_h_to_vertices() {
     let side = dir.path().join("smooth.lightmap.gltf");
     common::validate_clean(&[out, side]);
 }
+
+#[test]
+fn a_texture_on_the_second_uv_set_moves_to_texcoord_2_in_the_lightmap_bake() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (mut doc, _) = asset_scene();
+    // The same UVs as set 1 too; the base colour reads set 1 (its transform keeps none).
+    doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_1"] = json!(2);
+    doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"] = json!(1);
+    let input = dir.path().join("second.gltf");
+    write_json(&input, &doc);
+    let out = dir.path().join("second-out.gltf");
+    bake_flat(&input, &out, "both");
+    let side = dir.path().join("second-out.lightmap.gltf");
+    let (document, _, _) = gltf::import(&side).expect("re-read");
+    let floor = document
+        .materials()
+        .find(|m| m.pbr_metallic_roughness().base_color_texture().is_some())
+        .expect("the floor");
+    let info = floor
+        .pbr_metallic_roughness()
+        .base_color_texture()
+        .expect("texture");
+    assert_eq!(info.tex_coord(), 2, "set 1 is the lightmap's");
+    assert_eq!(floor.normal_texture().map(|n| n.tex_coord()), Some(0));
+    let textured = document
+        .meshes()
+        .flat_map(|m| m.primitives().collect::<Vec<_>>())
+        .find(|p| p.material().index() == floor.index())
+        .expect("the floor primitive");
+    assert!(textured.get(&gltf::Semantic::TexCoords(2)).is_some());
+    let (document, _, _) = gltf::import(&out).expect("re-read the vertex bake");
+    let floor = document
+        .materials()
+        .find(|m| m.pbr_metallic_roughness().base_color_texture().is_some())
+        .expect("the floor");
+    let info = floor
+        .pbr_metallic_roughness()
+        .base_color_texture()
+        .expect("texture");
+    assert_eq!(info.tex_coord(), 0);
+    common::validate_clean(&[out, side]);
+}
