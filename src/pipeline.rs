@@ -74,7 +74,9 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     timings.insert("import".to_string(), lap.elapsed().as_secs_f64());
 
     // 2.–4. Mesh, visibility, transport, solve: one bake, as every caller runs it.
-    let request = cli.request();
+    let mut request = cli.request();
+    // A textured material's vertex-bake COLOR_0 is the irradiance H.
+    request.irradiance |= exporter::keeps_textures(&scene);
     let settings = bake_core::Settings::resolve(&request, &scene.polygons)
         .map_err(|e| bad_input(anyhow!(e)))?;
     let bars = Bars::new(cli.quiet);
@@ -142,6 +144,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         scene: &scene,
         mesh,
         radiosity: &solution.b,
+        irradiance: bake.irradiance.as_deref(),
         shading,
         exposure,
     };
@@ -200,6 +203,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             entry.rho = bake.rho[i];
             entry.e = bake.emission[i];
             entry.direct = bake.direct[i];
+            entry.h = bake.irradiance.as_ref().map(|h| h[i]);
         }
         report.lights = light_entries(&scene, &bake);
         let counts = &bake.counts;

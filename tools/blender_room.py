@@ -175,4 +175,5 @@ def main():
     print("BLENDER_ROOM " + json.dumps(report, sort_keys=True))
 
 
-main()
+if __name__ == "__main__":  # also imported by blender_textured_room.py
+    main()

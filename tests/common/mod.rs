@@ -330,3 +330,31 @@ pub fn blender_installed() -> bool {
         .output()
         .is_ok_and(|o| o.status.success())
 }
+
+/// Runs the Khronos validator (`node tools/validate.mjs`) on `files` and returns its output,
+/// asserting that every file has 0 errors and 0 warnings. `None` (with a message) when the
+/// validator is not installed, unless `BAKE_REQUIRE_VALIDATOR=1`.
+pub fn validate_clean(files: &[PathBuf]) -> Option<String> {
+    if !validator_available() {
+        let required = std::env::var("BAKE_REQUIRE_VALIDATOR").is_ok_and(|v| v == "1");
+        assert!(
+            !required,
+            "BAKE_REQUIRE_VALIDATOR=1 but the validator is not installed"
+        );
+        eprintln!("skipped the validator: not installed (run tools/install-validator)");
+        return None;
+    }
+    let output = Command::new("node")
+        .arg(tools_dir().join("validate.mjs"))
+        .args(files)
+        .output()
+        .expect("run node tools/validate.mjs");
+    let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
+    let summaries: Vec<&str> = stdout.lines().filter(|l| !l.starts_with(' ')).collect();
+    assert_eq!(summaries.len(), files.len(), "{stdout}");
+    for line in &summaries {
+        assert!(line.contains(": 0 errors, 0 warnings, "), "{stdout}");
+    }
+    assert!(output.status.success(), "{stdout}");
+    Some(stdout)
+}

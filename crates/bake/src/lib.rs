@@ -444,7 +444,8 @@ pub fn available_memory() -> Option<u64> {
 
 /// Per element: ρ and e of its polygon's material (the one place they are gathered): the
 /// factors, times the exact mean of `baseColorTexture` / `emissiveTexture` over the element's
-/// surface where the material has one (`texture::element_mean`).
+/// surface where the material has one (`texture::element_mean`), ρ also times the exact mean
+/// of the input's `COLOR_0` (`texture::element_colour_mean`).
 pub fn element_values(scene: &Scene, mesh: &ElementMesh) -> (Vec<[f64; BANDS]>, Vec<[f64; BANDS]>) {
     use rayon::prelude::*;
     mesh.elements
@@ -472,10 +473,19 @@ pub fn element_values(scene: &Scene, mesh: &ElementMesh) -> (Vec<[f64; BANDS]>, 
                     texture::element_mean(uv, reference, texture, image, &corners, el.normal);
                 [0, 1, 2].map(|c| factor[c] * mean[c])
             };
-            (
-                textured(m.rho, &m.base_color_texture),
-                textured(m.emission, &m.emissive_texture),
-            )
+            let mut rho = textured(m.rho, &m.base_color_texture);
+            // The input's COLOR_0 multiplies the base colour (glTF): its exact mean.
+            if let Some(uv) = uv {
+                let corners: Vec<glam::DVec3> = el
+                    .corner_indices()
+                    .iter()
+                    .map(|&k| mesh.vertices[k as usize])
+                    .collect();
+                if let Some(c) = texture::element_colour_mean(uv, &corners, el.normal) {
+                    rho = [0, 1, 2].map(|k| rho[k] * c[k]);
+                }
+            }
+            (rho, textured(m.emission, &m.emissive_texture))
         })
         .unzip()
 }

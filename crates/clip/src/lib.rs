@@ -24,6 +24,27 @@ fn has_area(area: f64) -> bool {
     area.abs() >= DEGENERATE_AREA
 }
 
+/// The area centroid of a simple polygon (fan triangles about the first vertex, each
+/// weighted by its signed area); the vertex mean when the area is zero.
+pub fn centroid(polygon: &[DVec2]) -> DVec2 {
+    let Some((&origin, rest)) = polygon.split_first() else {
+        return DVec2::ZERO;
+    };
+    let mut sum = DVec2::ZERO;
+    let mut twice = 0.0;
+    for pair in rest.windows(2) {
+        let (a, b) = (pair[0] - origin, pair[1] - origin);
+        let w = a.perp_dot(b);
+        sum += (a + b) * w / 3.0;
+        twice += w;
+    }
+    if twice == 0.0 {
+        let mean = polygon.iter().copied().sum::<DVec2>() / polygon.len() as f64;
+        return mean;
+    }
+    origin + sum / twice
+}
+
 /// Signed area (shoelace), positive for counter-clockwise.
 ///
 /// Fewer than three vertices give zero.
@@ -344,6 +365,19 @@ fn union_length(intervals: &mut [(f64, f64)]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn centroid_of_a_trapezoid() {
+        // (0,0) (4,0) (3,2) (1,2): area 6, centroid x = 2, y = 2·(2·2+4)/(3·(4+2)) = 8/9.
+        let p = [
+            DVec2::new(0.0, 0.0),
+            DVec2::new(4.0, 0.0),
+            DVec2::new(3.0, 2.0),
+            DVec2::new(1.0, 2.0),
+        ];
+        let c = centroid(&p);
+        assert!((c - DVec2::new(2.0, 8.0 / 9.0)).length() < 1e-15, "{c}");
+    }
     use proptest::prelude::*;
     use std::f64::consts::{SQRT_2, TAU};
 

@@ -1,6 +1,7 @@
 //! Builds a fresh glTF document (`gltf::json::Root`) and its binary buffer from the input's
 //! layout and the baked primitives.
 
+use crate::assets::{set_info_set, Assets, TEXTURE_TRANSFORM_EXTENSION};
 use crate::geometry::{NodeMesh, PrimitiveData};
 use crate::ExportError;
 use gltf::json;
@@ -9,7 +10,7 @@ use gltf::json::buffer::Target;
 use gltf::json::mesh::{Mode, Semantic};
 use gltf::json::validation::{Checked, USize64};
 use gltf::json::Index;
-use importer::{Layout, Transform};
+use importer::{Layout, Scene, Transform};
 use std::collections::BTreeMap;
 
 /// The name of the one material every baked primitive uses.
@@ -22,16 +23,22 @@ pub(crate) const RADIOSITY_ATTRIBUTE: &str = "RADIOSITY";
 /// `bin_uri` the buffer refers to an external file (`.gltf`), without it is the GLB's
 /// binary chunk.
 pub(crate) fn build(
-    layout: &Layout,
+    scene: &Scene,
     node_meshes: &[NodeMesh],
     bin_uri: Option<String>,
 ) -> Result<(json::Root, Vec<u8>), ExportError> {
+    let layout = &scene.layout;
     check_layout(layout)?;
     let mut writer = DocumentWriter::default();
     writer.root.asset.generator = Some(format!("bake {}", env!("CARGO_PKG_VERSION")));
     writer.add_layout(layout);
+    let mut assets = Assets::new(&scene.authored);
+    let mut textured = BTreeMap::new();
     for node_mesh in node_meshes {
-        writer.add_node_mesh(layout, node_mesh);
+        writer.add_node_mesh(layout, node_mesh, &mut assets, &mut textured)?;
+    }
+    if assets.uses_transform {
+        writer.use_extension(TEXTURE_TRANSFORM_EXTENSION);
     }
     Ok(writer.finish(bin_uri))
 }
@@ -118,13 +125,30 @@ impl DocumentWriter {
         self.root.scene = Some(index(0));
     }
 
-    fn add_node_mesh(&mut self, layout: &Layout, node_mesh: &NodeMesh) {
-        let material = self.material();
-        let primitives = node_mesh
-            .primitives
-            .iter()
-            .map(|data| self.add_primitive(data, material))
-            .collect();
+    /// One node's mesh; `textured` caches the unlit material made for each textured scene
+    /// material.
+    fn add_node_mesh(
+        &mut self,
+        layout: &Layout,
+        node_mesh: &NodeMesh,
+        assets: &mut Assets,
+        textured: &mut BTreeMap<usize, Index<json::Material>>,
+    ) -> Result<(), ExportError> {
+        let mut primitives = Vec::with_capacity(node_mesh.primitives.len());
+        for data in &node_mesh.primitives {
+            let material = match data.textured_material {
+                None => self.material(),
+                Some(m) => match textured.get(&m) {
+                    Some(&index) => index,
+                    None => {
+                        let index = self.textured_material(assets, m)?;
+                        textured.insert(m, index);
+                        index
+                    }
+                },
+            };
+            primitives.push(self.add_primitive(data, material));
+        }
         let mesh = self.root.push(json::Mesh {
             extensions: None,
             extras: Default::default(),
@@ -133,6 +157,34 @@ impl DocumentWriter {
             weights: None,
         });
         self.root.nodes[node_mesh.node].mesh = Some(mesh);
+        Ok(())
+    }
+
+    /// An unlit material keeping authored material `m`'s base colour (factor, texture on
+    /// `TEXCOORD_0`, its transform), alpha mode and name.
+    fn textured_material(
+        &mut self,
+        assets: &mut Assets,
+        m: usize,
+    ) -> Result<Index<json::Material>, ExportError> {
+        let authored = assets
+            .material(self, m, true)?
+            .ok_or_else(|| invalid(format!("material {m} has no authored form")))?;
+        let mut base_color_texture = authored.pbr_metallic_roughness.base_color_texture;
+        if let Some(info) = base_color_texture.as_mut() {
+            set_info_set(info, 0);
+        }
+        let mut material = unlit_material();
+        material.name = authored
+            .name
+            .or_else(|| Some(format!("{MATERIAL_NAME}_{m}")));
+        material.pbr_metallic_roughness.base_color_factor =
+            authored.pbr_metallic_roughness.base_color_factor;
+        material.pbr_metallic_roughness.base_color_texture = base_color_texture;
+        material.alpha_mode = authored.alpha_mode;
+        material.alpha_cutoff = authored.alpha_cutoff;
+        self.use_extension(UNLIT_EXTENSION);
+        Ok(self.root.push(material))
     }
 
     fn add_primitive(
@@ -152,6 +204,10 @@ impl DocumentWriter {
             Checked::Valid(Semantic::Extras(RADIOSITY_ATTRIBUTE.into())),
             radiosity,
         );
+        if let Some(texcoords) = &data.texcoords {
+            let uv = self.add_vec2(texcoords);
+            attributes.insert(Checked::Valid(Semantic::TexCoords(0)), uv);
+        }
         let indices = self.add_indices(&data.indices, data.positions.len());
         json::mesh::Primitive {
             attributes,
@@ -170,7 +226,7 @@ impl DocumentWriter {
             return material;
         }
         let material = self.root.push(unlit_material());
-        self.root.extensions_used.push(UNLIT_EXTENSION.into());
+        self.use_extension(UNLIT_EXTENSION);
         self.material = Some(material);
         material
     }
@@ -201,6 +257,30 @@ impl DocumentWriter {
             min,
             max,
         ))
+    }
+
+    /// Lists `name` in `extensionsUsed` (once).
+    pub(crate) fn use_extension(&mut self, name: &str) {
+        if !self.root.extensions_used.iter().any(|e| e == name) {
+            self.root.extensions_used.push(name.into());
+        }
+    }
+
+    /// A float VEC2 attribute (texture coordinates).
+    pub(crate) fn add_vec2(&mut self, values: &[[f32; 2]]) -> Index<json::Accessor> {
+        self.add_floats(values.as_flattened(), values.len(), Type::Vec2)
+    }
+
+    /// A float VEC4 attribute (tangents).
+    pub(crate) fn add_vec4(&mut self, values: &[[f32; 4]]) -> Index<json::Accessor> {
+        self.add_floats(values.as_flattened(), values.len(), Type::Vec4)
+    }
+
+    fn add_floats(&mut self, flat: &[f32], count: usize, type_: Type) -> Index<json::Accessor> {
+        let bytes: Vec<u8> = flat.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let view = self.add_view(&bytes, Target::ArrayBuffer);
+        self.root
+            .push(accessor(view, count, ComponentType::F32, type_, None, None))
     }
 
     /// Triangle indices: u16 when every index fits below the u16 primitive-restart value.

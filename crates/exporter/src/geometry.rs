@@ -17,6 +17,13 @@ pub(crate) struct PrimitiveData {
     pub(crate) colors: Vec<[f32; 3]>,
     /// Unclamped radiosity.
     pub(crate) radiosity: Vec<[f32; 3]>,
+    /// Textured materials: the base-colour texture's TEXCOORD set at each vertex (written as
+    /// `TEXCOORD_0`).
+    pub(crate) texcoords: Option<Vec<[f32; 2]>>,
+    /// Textured materials: the scene material whose base-colour texture the output keeps
+    /// (`COLOR_0` then holds the irradiance H); `None`: the shared white material (`COLOR_0`
+    /// holds b).
+    pub(crate) textured_material: Option<usize>,
     /// Triangle list, counter-clockwise about the local normal.
     pub(crate) indices: Vec<u32>,
 }
@@ -34,20 +41,46 @@ pub(crate) struct NodeMesh {
 pub(crate) fn build(bake: &Bake) -> Result<Vec<NodeMesh>, ExportError> {
     check_bake(bake)?;
     let groups = group_elements(bake.scene, bake.mesh);
-    let smoothed = match bake.shading {
-        // The paper's smoothing, welded across edges shared by coplanar polygons of one
-        // material (a wall split into two polygons shows no seam), exactly as the lightmap's
-        // vertex values are, so the vertex and lightmap bakes agree everywhere.
-        Shading::Smooth => Some(
-            lightmap::welded_vertex_values(&bake.scene.polygons, bake.mesh, bake.radiosity)
-                .map_err(|e| invalid(e.to_string()))?,
+    let textured: Vec<Option<u32>> = (0..bake.scene.materials.len())
+        .map(|m| textured_set(bake.scene, m))
+        .collect();
+    let irradiance = match bake.irradiance {
+        Some(h) => Some(h),
+        None if textured.iter().any(Option::is_some) => {
+            return Err(invalid(
+                "a textured material needs the irradiance H for COLOR_0".into(),
+            ))
+        }
+        None => None,
+    };
+    // The paper's smoothing, welded across edges shared by coplanar polygons of one
+    // material (a wall split into two polygons shows no seam), exactly as the lightmap's
+    // vertex values are, so the vertex and lightmap bakes agree everywhere.
+    let smooth = |values: &[[f64; 3]]| {
+        lightmap::welded_vertex_values(&bake.scene.polygons, bake.mesh, values)
+            .map_err(|e| invalid(e.to_string()))
+    };
+    let (smoothed, smoothed_h) = match bake.shading {
+        Shading::Smooth => (
+            Some(smooth(bake.radiosity)?),
+            irradiance.map(smooth).transpose()?,
         ),
-        Shading::Flat => None,
+        Shading::Flat => (None, None),
     };
     let mut node_meshes: Vec<NodeMesh> = Vec::new();
-    for (&(node, mesh, _primitive), elements) in &groups {
+    for (&(node, mesh, primitive), elements) in &groups {
         let space = NodeSpace::new(&bake.scene.layout.nodes[node].world, node)?;
-        let mut writer = PrimitiveWriter::new(bake, &space, smoothed.as_deref());
+        let material = bake.scene.layout.meshes[mesh].primitives[primitive].material;
+        let colour = match (textured.get(material).copied().flatten(), irradiance) {
+            (Some(set), Some(h)) => ColourSource::Irradiance {
+                material,
+                set: set as usize,
+                element: h,
+                smoothed: smoothed_h.as_deref(),
+            },
+            _ => ColourSource::Radiosity,
+        };
+        let mut writer = PrimitiveWriter::new(bake, &space, smoothed.as_deref(), colour);
         for &element in elements {
             writer.add_element(element)?;
         }
@@ -62,6 +95,33 @@ pub(crate) fn build(bake: &Bake) -> Result<Vec<NodeMesh>, ExportError> {
         }
     }
     Ok(node_meshes)
+}
+
+/// The TEXCOORD set of scene material `m`'s base-colour texture when the vertex bake keeps
+/// that texture: the material has one, an authored material to copy it from, and no emission
+/// (an unlit material shows no emission: emitters keep `COLOR_0` = b and the white material).
+pub(crate) fn textured_set(scene: &Scene, m: usize) -> Option<u32> {
+    let material = scene.materials.get(m)?;
+    let reference = material.base_color_texture.as_ref()?;
+    let authored = scene.authored.materials.get(m)?.as_ref()?;
+    let emits = material.emission.iter().any(|&e| e != 0.0);
+    let kept = authored["pbrMetallicRoughness"]["baseColorTexture"].is_object();
+    (kept && !emits).then_some(reference.tex_coord)
+}
+
+/// What `COLOR_0` of a primitive holds.
+#[derive(Clone, Copy)]
+enum ColourSource<'a> {
+    /// The radiosity b (untextured materials and emitters).
+    Radiosity,
+    /// The irradiance H (per element, and per mesh vertex when smooth), with the base-colour
+    /// texture's TEXCOORD `set` of scene material `material` at each vertex.
+    Irradiance {
+        material: usize,
+        set: usize,
+        element: &'a [[f64; 3]],
+        smoothed: Option<&'a [[f64; 3]]>,
+    },
 }
 
 /// (node, mesh, primitive) → element indices, in element order.
@@ -88,6 +148,20 @@ fn check_bake(bake: &Bake) -> Result<(), ExportError> {
             bake.radiosity.len(),
             mesh.elements.len()
         )));
+    }
+    if let Some(h) = bake.irradiance {
+        if h.len() != mesh.elements.len() {
+            return Err(invalid(format!(
+                "{} irradiance values for {} elements",
+                h.len(),
+                mesh.elements.len()
+            )));
+        }
+        if let Some(i) = h.iter().position(|h| !all_finite(h)) {
+            return Err(ExportError::NonFinite {
+                what: format!("{}: irradiance {:?}", element_name(bake, i), h[i]),
+            });
+        }
     }
     if !bake.exposure.is_finite() {
         return Err(invalid(format!("exposure {} is not finite", bake.exposure)));
@@ -211,6 +285,7 @@ struct PrimitiveWriter<'a> {
     space: &'a NodeSpace,
     /// Smooth shading: one value per mesh vertex. Flat: `None`.
     smoothed: Option<&'a [[f64; 3]]>,
+    colour: ColourSource<'a>,
     /// Smooth shading: (polygon, mesh vertex) → output vertex, so a polygon's elements share
     /// vertices.
     shared: HashMap<(u32, u32), u32>,
@@ -218,13 +293,24 @@ struct PrimitiveWriter<'a> {
 }
 
 impl<'a> PrimitiveWriter<'a> {
-    fn new(bake: &'a Bake<'a>, space: &'a NodeSpace, smoothed: Option<&'a [[f64; 3]]>) -> Self {
+    fn new(
+        bake: &'a Bake<'a>,
+        space: &'a NodeSpace,
+        smoothed: Option<&'a [[f64; 3]]>,
+        colour: ColourSource<'a>,
+    ) -> Self {
+        let mut data = PrimitiveData::default();
+        if let ColourSource::Irradiance { material, .. } = colour {
+            data.texcoords = Some(Vec::new());
+            data.textured_material = Some(material);
+        }
         PrimitiveWriter {
             bake,
             space,
             smoothed,
+            colour,
             shared: HashMap::new(),
-            data: PrimitiveData::default(),
+            data,
         }
     }
 
@@ -287,12 +373,57 @@ impl<'a> PrimitiveWriter<'a> {
             .map_err(|_| invalid("more than 2^32 vertices in one primitive".into()))?;
         let world = self.bake.mesh.vertices[vertex as usize];
         let exposure = self.bake.exposure;
+        let shown = match self.colour {
+            ColourSource::Radiosity => value,
+            ColourSource::Irradiance {
+                element: h,
+                smoothed,
+                ..
+            } => match smoothed {
+                Some(values) => values[vertex as usize],
+                None => h[element],
+            },
+        };
+        if let ColourSource::Irradiance { set, .. } = self.colour {
+            let polygon = self.bake.mesh.elements[element].polygon as usize;
+            let uv = self
+                .bake
+                .scene
+                .uvs
+                .get(polygon)
+                .and_then(Option::as_ref)
+                .and_then(|uv| uv.at(set, world))
+                .ok_or_else(|| {
+                    invalid(format!(
+                        "{}: its material is textured but it has no TEXCOORD_{set}",
+                        element_name(self.bake, element)
+                    ))
+                })?;
+            let uv = [uv.x as f32, uv.y as f32];
+            if !all_finite_f32(&uv) {
+                return Err(ExportError::NonFinite {
+                    what: format!(
+                        "{}: TEXCOORD {uv:?} of mesh vertex {vertex} (as f32)",
+                        element_name(self.bake, element)
+                    ),
+                });
+            }
+            if let Some(texcoords) = self.data.texcoords.as_mut() {
+                texcoords.push(uv);
+            }
+        }
+        // A viewer multiplies the texture by COLOR_0 only: the input's own vertex colour
+        // (part of ρ) goes into it with H.
+        let shown = match (self.colour, self.input_colour(element, world)) {
+            (ColourSource::Irradiance { .. }, Some(c)) => [0, 1, 2].map(|k| shown[k] * c[k]),
+            _ => shown,
+        };
         let attributes = [
             ("POSITION", to_f32(self.space.position(world).to_array())),
             ("NORMAL", to_f32(normal.to_array())),
             (
                 "COLOR_0",
-                to_f32(value.map(|v| (v * exposure).clamp(0.0, 1.0))),
+                to_f32(shown.map(|v| (v * exposure).clamp(0.0, 1.0))),
             ),
             ("_RADIOSITY", to_f32(value)),
         ];
@@ -312,6 +443,17 @@ impl<'a> PrimitiveWriter<'a> {
         self.data.colors.push(color);
         self.data.radiosity.push(radiosity);
         Ok(output)
+    }
+
+    /// The input's `COLOR_0` at a point of `element`'s polygon, if it had one.
+    fn input_colour(&self, element: usize, world: DVec3) -> Option<DVec3> {
+        let polygon = self.bake.mesh.elements[element].polygon as usize;
+        self.bake
+            .scene
+            .uvs
+            .get(polygon)
+            .and_then(Option::as_ref)
+            .and_then(|uv| uv.color_at(world))
     }
 
     fn push_triangle(&mut self, a: u32, b: u32, c: u32) {

@@ -10,7 +10,12 @@
 //! elements gets its own mesh, whose primitives hold the element mesh of that instance
 //! (positions and normals in the node's local space), the clamped colour (`COLOR_0`) and the
 //! unclamped radiosity (`_RADIOSITY`), with one shared `KHR_materials_unlit` material.
+//! A material with a base-colour texture (and no emission) instead keeps that texture in its
+//! own unlit material (factor, sampler, image embedded, `KHR_texture_transform`), its
+//! primitives carry `TEXCOORD_0` and their `COLOR_0` holds the irradiance H: a viewer shows
+//! factor × texture × H, the reflected light with the texture's detail.
 
+mod assets;
 mod document;
 mod files;
 mod geometry;
@@ -41,9 +46,18 @@ pub struct Bake<'a> {
     pub mesh: &'a mesher::ElementMesh,
     /// Radiosity b per element (unclamped, linear, same units as emission).
     pub radiosity: &'a [[f64; 3]],
+    /// Irradiance H per element (`b = e + ρ H`): required when a material keeps its
+    /// base-colour texture (its `COLOR_0` is H, so a viewer shows factor × texture × H).
+    pub irradiance: Option<&'a [[f64; 3]]>,
     pub shading: Shading,
     /// `COLOR_0 = clamp(value × exposure, 0, 1)`.
     pub exposure: f64,
+}
+
+/// Whether some material of `scene` keeps its base-colour texture in the vertex bake (then
+/// [`Bake::irradiance`] is required).
+pub fn keeps_textures(scene: &importer::Scene) -> bool {
+    (0..scene.materials.len()).any(|m| geometry::textured_set(scene, m).is_some())
 }
 
 /// `--exposure auto`: the exposure that maps the 99th percentile, by area, of the elements'
@@ -114,7 +128,7 @@ pub fn write_gltf(path: &Path, bake: &Bake) -> Result<(), ExportError> {
         files::OutputFormat::Gltf => {
             let bin_path = files::bin_path_for(path)?;
             let bin_uri = files::uri_for_file_name(&bin_path);
-            let (root, bin) = document::build(&bake.scene.layout, &primitives, Some(bin_uri))?;
+            let (root, bin) = document::build(bake.scene, &primitives, Some(bin_uri))?;
             let json = encode_json(&root)?;
             if bin.is_empty() {
                 files::write_atomically(path, &json)
@@ -123,7 +137,7 @@ pub fn write_gltf(path: &Path, bake: &Bake) -> Result<(), ExportError> {
             }
         }
         files::OutputFormat::Glb => {
-            let (root, bin) = document::build(&bake.scene.layout, &primitives, None)?;
+            let (root, bin) = document::build(bake.scene, &primitives, None)?;
             let glb = encode_glb(&root, &bin)?;
             files::write_atomically(path, &glb)
         }

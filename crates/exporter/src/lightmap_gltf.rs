@@ -8,15 +8,14 @@
 //! order) and the triangles (v0 v1 v2), (v0 v2 v3) — the triangles the lightmap's texels were
 //! reconstructed over.
 
-use crate::document::{accessor, check_layout, pad_to_four, DocumentWriter};
+use crate::assets::{embed, reads_set, remap_sets, Assets, TEXTURE_TRANSFORM_EXTENSION};
+use crate::document::{check_layout, DocumentWriter};
 use crate::files::{self, OutputFormat};
 use crate::{encode_glb, encode_json, ExportError};
 use glam::{DMat3, DMat4, DVec3};
 use gltf::json;
-use gltf::json::accessor::{ComponentType, Type};
-use gltf::json::buffer::Target;
 use gltf::json::mesh::{Mode, Semantic};
-use gltf::json::validation::{Checked, USize64};
+use gltf::json::validation::Checked;
 use gltf::json::Index;
 use importer::{Material, Scene};
 use lightmap::Lightmap;
@@ -138,19 +137,7 @@ pub fn write_lightmap_gltf(
             extras: Default::default(),
         },
         OutputFormat::Glb => {
-            pad_to_four(&mut writer.bin);
-            let offset = writer.bin.len();
-            writer.bin.extend_from_slice(&png.bytes);
-            let view = writer.root.push(json::buffer::View {
-                buffer: Index::new(0),
-                byte_length: USize64::from(png.bytes.len()),
-                byte_offset: Some(USize64::from(offset)),
-                byte_stride: None,
-                name: None,
-                target: None,
-                extensions: None,
-                extras: Default::default(),
-            });
+            let view = embed(&mut writer, &png.bytes);
             json::Image {
                 buffer_view: Some(view),
                 mime_type: Some(json::image::MimeType("image/png".into())),
@@ -162,24 +149,31 @@ pub fn write_lightmap_gltf(
         }
     };
     let texture = add_texture(&mut writer.root, image);
-    let mut materials = BTreeMap::new();
+    let mut assets = Assets::new(&scene.authored);
+    // Scene material → (output material, whether its textures read the input's TEXCOORD_1,
+    // which moves to TEXCOORD_2 because the lightmap takes TEXCOORD_1).
+    let mut materials: BTreeMap<usize, (Index<json::Material>, UvNeeds)> = BTreeMap::new();
     for ((node, mesh), primitives) in group_polygons(scene) {
         let space = NodeSpace::new(&scene.layout.nodes[node].world, node)?;
         let mut output = Vec::with_capacity(primitives.len());
         for (primitive, polygons) in primitives {
             let material_index = scene.layout.meshes[mesh].primitives[primitive].material;
-            let material = match materials.get(&material_index) {
+            let (material, needs) = match materials.get(&material_index) {
                 Some(&m) => m,
                 None => {
                     let source = scene.materials.get(material_index).ok_or_else(|| {
                         ExportError::InvalidData(format!("missing material {material_index}"))
                     })?;
-                    let m = writer.root.push(lit_material(source, texture, png.scale));
+                    let made = match assets.material(&mut writer, material_index, false)? {
+                        Some(authored) => kept_material(authored, texture, png.scale),
+                        None => (lit_material(source, texture, png.scale), UvNeeds::default()),
+                    };
+                    let m = (writer.root.push(made.0), made.1);
                     materials.insert(material_index, m);
                     m
                 }
             };
-            let data = primitive_data(scene, lightmap, &space, &polygons)?;
+            let data = primitive_data(scene, lightmap, &space, &polygons, needs)?;
             output.push(add_primitive(&mut writer, &data, material));
         }
         let mesh_index = writer.root.push(json::Mesh {
@@ -195,7 +189,15 @@ pub fn write_lightmap_gltf(
         add_lights(&mut writer.root, scene);
     }
     writer.root.extensions_used.push(LIGHTMAP_EXTENSION.into());
-    if scene.materials.iter().any(|m| max3(m.emission) > 1.0) {
+    if assets.uses_transform {
+        writer.use_extension(TEXTURE_TRANSFORM_EXTENSION);
+    }
+    let strength = |m: &json::Material| {
+        m.extensions
+            .as_ref()
+            .is_some_and(|e| e.emissive_strength.is_some())
+    };
+    if writer.root.materials.iter().any(strength) {
         writer
             .root
             .extensions_used
@@ -370,6 +372,76 @@ fn lit_material(source: &Material, texture: Index<json::Texture>, scale: f64) ->
     }
 }
 
+/// The input's own material, as authored (textures, normal, metallic-roughness, emission;
+/// no occlusion texture, which would darken twice), single-sided like every output triangle,
+/// with the lightmap through `MOZ_lightmap`. Texture references to the input's TEXCOORD_1
+/// move to TEXCOORD_2 (the lightmap's set is 1); the flag says whether any did.
+fn kept_material(
+    mut material: json::Material,
+    texture: Index<json::Texture>,
+    scale: f64,
+) -> (json::Material, UvNeeds) {
+    let second_set = reads_set(&material, 1);
+    let normal_set = material.normal_texture.as_ref().map(|n| n.tex_coord);
+    if second_set {
+        remap_sets(&mut material, |set| if set == 1 { 2 } else { set });
+    }
+    material.double_sided = false;
+    material
+        .extensions
+        .get_or_insert_with(Default::default)
+        .others
+        .insert(
+            LIGHTMAP_EXTENSION.into(),
+            serde_json::json!({ "index": texture.value(), "texCoord": 1, "intensity": scale }),
+        );
+    (
+        material,
+        UvNeeds {
+            second_set,
+            normal_set,
+        },
+    )
+}
+
+/// What a kept material needs of its primitives beyond positions, normals and the lightmap.
+#[derive(Clone, Copy, Debug, Default)]
+struct UvNeeds {
+    /// Its textures read the input's TEXCOORD_1 (written as TEXCOORD_2).
+    second_set: bool,
+    /// Its normal map reads this input TEXCOORD set: the primitive gets `TANGENT`s.
+    normal_set: Option<u32>,
+}
+
+/// The tangent (xyz, handedness w) of a planar polygon for a normal map: the direction of
+/// increasing u in the plane (node-local space), orthogonal to `normal`, with w = ±1 the sign
+/// that makes `cross(normal, tangent) × w` the direction of increasing v — constant over a
+/// polygon whose UVs are affine, as every output polygon's are (MikkTSpace's value for a
+/// face whose vertices are not shared). A degenerate mapping gets any unit tangent, w = 1.
+fn polygon_tangent(p: [DVec3; 3], uv: [glam::DVec2; 3], normal: DVec3) -> [f64; 4] {
+    let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+    let (d1, d2) = (uv[1] - uv[0], uv[2] - uv[0]);
+    let det = d1.x * d2.y - d2.x * d1.y;
+    let fallback = || {
+        let t = normal.any_orthonormal_vector();
+        [t.x, t.y, t.z, 1.0]
+    };
+    if det == 0.0 || !det.is_finite() {
+        return fallback();
+    }
+    let t = (e1 * d2.y - e2 * d1.y) / det;
+    let b = (e2 * d1.x - e1 * d2.x) / det;
+    let Some(t) = (t - normal * normal.dot(t)).try_normalize() else {
+        return fallback();
+    };
+    let w = if normal.cross(t).dot(b) < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    [t.x, t.y, t.z, w]
+}
+
 /// node → (mesh, [(primitive, polygon indices in polygon order)]), in node then primitive order.
 type Groups = BTreeMap<(usize, usize), BTreeMap<usize, Vec<usize>>>;
 
@@ -392,6 +464,15 @@ struct PrimitiveData {
     positions: Vec<[f32; 3]>,
     normals: Vec<[f32; 3]>,
     texcoords: Vec<[f32; 2]>,
+    /// The input's TEXCOORD_0 where its material is textured (else the lightmap's UVs, so
+    /// TEXCOORD_1 has its TEXCOORD_0).
+    input_uv0: Option<Vec<[f32; 2]>>,
+    /// The input's TEXCOORD_1, written as TEXCOORD_2, when the material's textures read it.
+    input_uv1: Option<Vec<[f32; 2]>>,
+    /// Unit tangents with handedness, when the material has a normal map.
+    tangents: Option<Vec<[f32; 4]>>,
+    /// The input's COLOR_0 (a lit viewer multiplies the base colour by it, as the bake did).
+    colors: Option<Vec<[f32; 3]>>,
     indices: Vec<u32>,
 }
 
@@ -400,13 +481,43 @@ fn primitive_data(
     lightmap: &Lightmap,
     space: &NodeSpace,
     polygons: &[usize],
+    needs: UvNeeds,
 ) -> Result<PrimitiveData, ExportError> {
+    let second_set = needs.second_set;
+    let has_set = |set: usize| {
+        polygons.iter().all(|&p| {
+            scene
+                .uvs
+                .get(p)
+                .and_then(Option::as_ref)
+                .is_some_and(|uv| uv.sets[set])
+        })
+    };
     let mut data = PrimitiveData {
         positions: Vec::new(),
         normals: Vec::new(),
         texcoords: Vec::new(),
+        input_uv0: has_set(0).then(Vec::new),
+        input_uv1: (second_set && has_set(1)).then(Vec::new),
+        tangents: needs.normal_set.map(|_| Vec::new()),
+        colors: polygons
+            .iter()
+            .all(|&p| {
+                scene
+                    .uvs
+                    .get(p)
+                    .and_then(Option::as_ref)
+                    .and_then(|uv| uv.triangles.first())
+                    .is_some_and(|t| t.color.is_some())
+            })
+            .then(Vec::new),
         indices: Vec::new(),
     };
+    if second_set && data.input_uv1.is_none() {
+        return Err(ExportError::InvalidData(
+            "a material reads TEXCOORD_1 but its primitive has none".into(),
+        ));
+    }
     for &p in polygons {
         let polygon = &scene.polygons[p];
         let normal = space
@@ -424,6 +535,43 @@ fn primitive_data(
             data.positions.push(local);
             data.normals.push(normal.to_array().map(|x| x as f32));
             data.texcoords.push(lightmap.texcoord(p, k));
+            let uv = scene.uvs.get(p).and_then(Option::as_ref);
+            if let Some(colors) = data.colors.as_mut() {
+                let c = uv.and_then(|uv| uv.color_at(*vertex)).ok_or_else(|| {
+                    ExportError::InvalidData(format!("polygon {p} has no COLOR_0"))
+                })?;
+                colors.push(c.to_array().map(|x| x.clamp(0.0, 1.0) as f32));
+            }
+            for (set, out) in [(0, &mut data.input_uv0), (1, &mut data.input_uv1)] {
+                if let Some(out) = out.as_mut() {
+                    let value = uv.and_then(|uv| uv.at(set, *vertex)).ok_or_else(|| {
+                        ExportError::InvalidData(format!("polygon {p} has no TEXCOORD_{set}"))
+                    })?;
+                    let value = [value.x as f32, value.y as f32];
+                    if !value.iter().all(|x| x.is_finite()) {
+                        return Err(ExportError::NonFinite {
+                            what: format!("TEXCOORD_{set} {value:?} of polygon {p}"),
+                        });
+                    }
+                    out.push(value);
+                }
+            }
+        }
+        if let (Some(tangents), Some(set)) = (data.tangents.as_mut(), needs.normal_set) {
+            let uv = scene.uvs.get(p).and_then(Option::as_ref);
+            let corner = |k: usize| polygon.vertices[k];
+            let uvs = [0, 1, 2].map(|k| {
+                uv.and_then(|uv| uv.at(set as usize, corner(k)))
+                    .unwrap_or_default()
+            });
+            let local = [0, 1, 2].map(|k| space.position(corner(k)));
+            let t = polygon_tangent(local, uvs, normal).map(|x| x as f32);
+            if !t.iter().all(|x| x.is_finite()) {
+                return Err(ExportError::NonFinite {
+                    what: format!("the tangent of polygon {p}"),
+                });
+            }
+            tangents.extend(std::iter::repeat_n(t, polygon.vertices.len()));
         }
         for k in 1..polygon.vertices.len() as u32 - 1 {
             let (a, b, c) = (first, first + k, first + k + 1);
@@ -447,11 +595,27 @@ fn add_primitive(
     attributes.insert(Checked::Valid(Semantic::Positions), position);
     let normal = writer.add_vec3(&data.normals, false);
     attributes.insert(Checked::Valid(Semantic::Normals), normal);
-    let uv1 = add_vec2(writer, &data.texcoords);
-    // glTF numbers UV sets from 0 without gaps: TEXCOORD_0 (the same chart layout; the input's
-    // own UVs are not kept) makes TEXCOORD_1 valid.
-    attributes.insert(Checked::Valid(Semantic::TexCoords(0)), uv1);
+    let uv1 = writer.add_vec2(&data.texcoords);
+    // glTF numbers UV sets from 0 without gaps: the input's TEXCOORD_0 where its material is
+    // textured, else the lightmap's own UVs again, makes TEXCOORD_1 valid.
+    let uv0 = match &data.input_uv0 {
+        Some(uv) => writer.add_vec2(uv),
+        None => uv1,
+    };
+    attributes.insert(Checked::Valid(Semantic::TexCoords(0)), uv0);
     attributes.insert(Checked::Valid(Semantic::TexCoords(1)), uv1);
+    if let Some(uv) = &data.input_uv1 {
+        let uv2 = writer.add_vec2(uv);
+        attributes.insert(Checked::Valid(Semantic::TexCoords(2)), uv2);
+    }
+    if let Some(colors) = &data.colors {
+        let color = writer.add_vec3(colors, false);
+        attributes.insert(Checked::Valid(Semantic::Colors(0)), color);
+    }
+    if let Some(tangents) = &data.tangents {
+        let tangent = writer.add_vec4(tangents);
+        attributes.insert(Checked::Valid(Semantic::Tangents), tangent);
+    }
     let indices = writer.add_indices(&data.indices, data.positions.len());
     json::mesh::Primitive {
         attributes,
@@ -462,23 +626,6 @@ fn add_primitive(
         mode: Checked::Valid(Mode::Triangles),
         targets: None,
     }
-}
-
-fn add_vec2(writer: &mut DocumentWriter, values: &[[f32; 2]]) -> Index<json::Accessor> {
-    let bytes: Vec<u8> = values
-        .iter()
-        .flatten()
-        .flat_map(|v| v.to_le_bytes())
-        .collect();
-    let view = writer.add_view(&bytes, Target::ArrayBuffer);
-    writer.root.push(accessor(
-        view,
-        values.len(),
-        ComponentType::F32,
-        Type::Vec2,
-        None,
-        None,
-    ))
 }
 
 /// World → one node's local space (the vertex exporter's rule).

@@ -23,8 +23,8 @@ use std::path::Path;
 
 /// The version of this report's layout (2: `solver.condition`, `solver.iterations`, the
 /// `iterative` method and the `energy` object; 4: `lights`, `energy.delivered`, elements'
-/// `direct`).
-pub const SCHEMA_VERSION: u32 = 4;
+/// `direct`; 5: elements' `h`).
+pub const SCHEMA_VERSION: u32 = 5;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Report {
@@ -247,6 +247,10 @@ pub struct ElementEntry {
     /// The part of `b` straight from punctual lights, `ρ E / π` (absent in older reports: 0).
     #[serde(default)]
     pub direct: [f64; 3],
+    /// The irradiance H (`b = e + ρ H`, before exposure) when the bake computed it (a
+    /// lightmap, or a textured material, whose vertex-bake `COLOR_0` is H).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub h: Option<[f64; 3]>,
 }
 
 impl Report {
@@ -330,6 +334,7 @@ impl Report {
                     e: material.emission,
                     b: *b,
                     direct: [0.0; 3],
+                    h: None,
                 })
             })
             .collect()

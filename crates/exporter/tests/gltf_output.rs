@@ -19,6 +19,7 @@ fn bake(fixture: &Fixture, shading: Shading) -> Bake<'_> {
         scene: &fixture.scene,
         mesh: &fixture.mesh,
         radiosity: &fixture.radiosity,
+        irradiance: None,
         shading,
         exposure: EXPOSURE,
     }

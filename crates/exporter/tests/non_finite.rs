@@ -14,6 +14,7 @@ fn bake<'a>(fixture: &'a Fixture, radiosity: &'a [[f64; 3]], shading: Shading) -
         scene: &fixture.scene,
         mesh: &fixture.mesh,
         radiosity,
+        irradiance: None,
         shading,
         exposure: 1.0,
     }

@@ -47,6 +47,7 @@ fn outputs_validate_without_errors_or_warnings() {
             scene: &fixture.scene,
             mesh: &fixture.mesh,
             radiosity: &fixture.radiosity,
+            irradiance: None,
             shading,
             exposure: 0.9,
         };

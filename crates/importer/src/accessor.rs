@@ -39,6 +39,29 @@ pub(crate) fn read_vec2(
         .collect())
 }
 
+/// Reads a colour accessor (`COLOR_n`): VEC3 or VEC4 (alpha dropped), float or normalized
+/// unsigned byte/short, as linear RGB.
+pub(crate) fn read_colors(
+    root: &Root,
+    buffers: &[Data],
+    index: usize,
+) -> Result<Vec<DVec3>, String> {
+    let accessor = root
+        .accessors
+        .get(index)
+        .ok_or_else(|| format!("accessor {index} does not exist"))?;
+    let (ty, n) = match accessor.type_ {
+        Checked::Valid(Type::Vec3) => (Type::Vec3, 3),
+        Checked::Valid(Type::Vec4) => (Type::Vec4, 4),
+        _ => return Err(format!("colour accessor {index} is not VEC3 or VEC4")),
+    };
+    let values = read_components(root, buffers, index, ty)?;
+    Ok(values
+        .chunks_exact(n)
+        .map(|c| DVec3::new(c[0], c[1], c[2]))
+        .collect())
+}
+
 /// Reads an index accessor: SCALAR, unsigned byte/short/int, not normalized.
 pub(crate) fn read_indices(
     root: &Root,

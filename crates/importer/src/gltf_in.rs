@@ -376,27 +376,31 @@ fn build_scene(
     if polygons.is_empty() {
         return Err(ImportError::Empty);
     }
-    let (textures, images) = crate::texture::load(root, buffers, base, &mut materials, &checked)?;
-    let uvs = polygon_uvs(&polygons, &materials, &layout, &cache)?;
+    let loaded = crate::texture::load(root, buffers, base, &mut materials, &checked)?;
+    warnings.extend(loaded.warnings);
+    let uvs = polygon_uvs(&polygons, &materials, &loaded.authored, &layout, &cache)?;
     Ok(Scene {
         polygons,
         materials,
         lights,
-        textures,
-        images,
+        textures: loaded.textures,
+        images: loaded.images,
         uvs,
+        authored: loaded.authored,
         layout,
         stats,
         warnings,
     })
 }
 
-/// Per polygon whose material has a texture: the source triangles it was made of, in world
-/// space, with their texture coordinates. A glTF polygon is source triangle `face`, or the
-/// quad merged from `face` and `face + 1`.
+/// Per polygon whose material has a texture (decoded for ρ/e, or kept for the outputs) or
+/// whose primitive has COLOR_0: the source triangles it was made of, in world space, with
+/// their texture coordinates (every set the primitive has) and colours. A glTF polygon is source triangle `face`, or the quad merged from
+/// `face` and `face + 1`.
 fn polygon_uvs(
     polygons: &[crate::Polygon],
     materials: &[Material],
+    authored: &crate::Authored,
     layout: &Layout,
     cache: &HashMap<(usize, usize), Option<LocalPrimitive>>,
 ) -> Result<Vec<Option<crate::PolygonUv>>, ImportError> {
@@ -408,14 +412,20 @@ fn polygon_uvs(
                 .iter()
                 .filter_map(|t| t.as_ref().map(|t| t.tex_coord))
                 .collect();
-            if sets.is_empty() {
-                return Ok(None);
-            }
+            let kept = authored
+                .materials
+                .get(p.material)
+                .and_then(Option::as_ref)
+                .map_or([false; 2], crate::texture::authored_sets);
             let o = p.origin;
             let local = cache
                 .get(&(o.mesh, o.primitive))
                 .and_then(Option::as_ref)
                 .ok_or_else(|| ImportError::Gltf(format!("mesh {} lost its primitive", o.mesh)))?;
+            if sets.is_empty() && kept == [false; 2] && local.colors.is_none() {
+                return Ok(None);
+            }
+            let present = [0, 1].map(|set| local.uvs.get(set).is_some_and(Option::is_some));
             let world = layout.nodes[o.node].world;
             let count = if p.vertices.len() == 4 { 2 } else { 1 };
             let mut triangles = Vec::with_capacity(count);
@@ -438,9 +448,25 @@ fn polygon_uvs(
                         })?;
                     uv[set as usize] = t.map(|i| values[i as usize]);
                 }
-                triangles.push(crate::UvTriangle { positions, uv });
+                for set in 0..2 {
+                    if let (true, Some(values)) = (present[set], &local.uvs[set]) {
+                        uv[set] = t.map(|i| values[i as usize]);
+                    }
+                }
+                let color = local
+                    .colors
+                    .as_ref()
+                    .map(|c| t.map(|i| c[i as usize]));
+                triangles.push(crate::UvTriangle {
+                    positions,
+                    uv,
+                    color,
+                });
             }
-            Ok(Some(crate::PolygonUv { triangles }))
+            Ok(Some(crate::PolygonUv {
+                triangles,
+                sets: present,
+            }))
         })
         .collect()
 }
@@ -772,6 +798,8 @@ struct LocalPrimitive {
     triangles: Vec<[u32; 3]>,
     /// TEXCOORD_0 and TEXCOORD_1, where present.
     uvs: Vec<Option<Vec<glam::DVec2>>>,
+    /// COLOR_0 (linear RGB in [0, 1]), where present: it multiplies ρ.
+    colors: Option<Vec<DVec3>>,
 }
 
 impl LocalPrimitive {
@@ -855,10 +883,37 @@ fn read_primitive(
                 .filter(|uv| uv.len() == positions.len())
         })
         .collect();
+    // COLOR_0 multiplies the base colour (glTF 2.0, "Metallic-Roughness Material"), so it
+    // is part of ρ: one that cannot be read, or lies outside [0, 1], is refused.
+    let colors = match primitive
+        .attributes
+        .get(&Checked::Valid(Semantic::Colors(0)))
+    {
+        None => None,
+        Some(a) => {
+            let colors = accessor::read_colors(root, buffers, a.value())
+                .map_err(|e| fail(format!("COLOR_0: {e}")))?;
+            if colors.len() != positions.len() {
+                return Err(fail(format!(
+                    "COLOR_0 has {} values for {} positions",
+                    colors.len(),
+                    positions.len()
+                )));
+            }
+            if let Some(bad) = colors
+                .iter()
+                .find(|c| !c.is_finite() || c.min_element() < 0.0 || c.max_element() > 1.0)
+            {
+                return Err(fail(format!("COLOR_0 value {bad} is outside [0, 1]")));
+            }
+            Some(colors)
+        }
+    };
     Ok(Some(LocalPrimitive {
         positions,
         triangles: triangles(mode, &indices),
         uvs,
+        colors,
     }))
 }
 

@@ -18,10 +18,11 @@ use std::path::{Path, PathBuf};
 mod accessor;
 mod gltf_in;
 mod obj_in;
+mod obj_texture;
 mod polygon;
 pub mod texture;
 
-pub use texture::{Image, Texture, TextureRef, Wrap};
+pub use texture::{Authored, AuthoredTexture, EncodedImage, Image, Texture, TextureRef, Wrap};
 
 /// Where a polygon came from, so its results can be written back.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -82,6 +83,8 @@ pub struct Material {
 pub struct UvTriangle {
     pub positions: [DVec3; 3],
     pub uv: [[glam::DVec2; 3]; 2],
+    /// The corners' `COLOR_0` (linear RGB), when the primitive has one.
+    pub color: Option<[DVec3; 3]>,
 }
 
 /// How a textured polygon maps to texture space: the source triangles that cover it (1, or 2
@@ -89,6 +92,56 @@ pub struct UvTriangle {
 #[derive(Clone, Debug, PartialEq)]
 pub struct PolygonUv {
     pub triangles: Vec<UvTriangle>,
+    /// Which TEXCOORD sets (0, 1) the primitive has; the other's `uv` are zeros.
+    pub sets: [bool; 2],
+}
+
+impl PolygonUv {
+    /// TEXCOORD set `set` (0 or 1) at a point of the polygon: the affine map of the source
+    /// triangle that holds it (the one whose smallest barycentric coordinate is largest, so a
+    /// point on a shared edge or just outside by rounding still gets the nearest triangle's
+    /// value). `None` without triangles or when the primitive has no such set.
+    pub fn at(&self, set: usize, point: DVec3) -> Option<glam::DVec2> {
+        if !self.sets.get(set).copied().unwrap_or(false) {
+            return None;
+        }
+        self.interpolate(point, |t| Some(t.uv[set]))
+    }
+
+    /// `COLOR_0` at a point of the polygon (as [`PolygonUv::at`]); `None` without colours.
+    pub fn color_at(&self, point: DVec3) -> Option<DVec3> {
+        self.interpolate(point, |t| t.color)
+    }
+
+    /// The barycentric interpolation of `corners` over the source triangle holding `point`.
+    fn interpolate<T>(
+        &self,
+        point: DVec3,
+        corners: impl Fn(&UvTriangle) -> Option<[T; 3]>,
+    ) -> Option<T>
+    where
+        T: Copy + std::ops::Mul<f64, Output = T> + std::ops::Add<Output = T>,
+    {
+        let mut best: Option<(f64, T)> = None;
+        for t in &self.triangles {
+            let [a, b, c] = t.positions;
+            let n = (b - a).cross(c - a);
+            let area = n.length_squared();
+            if area <= 0.0 || !area.is_finite() {
+                continue;
+            }
+            let la = (b - point).cross(c - point).dot(n) / area;
+            let lb = (c - point).cross(a - point).dot(n) / area;
+            let lc = 1.0 - la - lb;
+            let worst = la.min(lb).min(lc);
+            let [ua, ub, uc] = corners(t)?;
+            let value = ua * la + ub * lb + uc * lc;
+            if best.is_none_or(|(w, _)| worst > w) {
+                best = Some((worst, value));
+            }
+        }
+        best.map(|(_, value)| value)
+    }
 }
 
 /// A node of the input hierarchy, kept so the output has the same structure.
@@ -227,8 +280,11 @@ pub struct Scene {
     /// Textures referenced by materials in use, and their decoded images.
     pub textures: Vec<Texture>,
     pub images: Vec<Image>,
-    /// Per polygon: its texture mapping when its material is textured.
+    /// Per polygon: its texture mapping when its material has a texture in any slot the
+    /// outputs keep (base colour, emissive, metallic-roughness, normal).
     pub uvs: Vec<Option<PolygonUv>>,
+    /// The materials, textures and encoded images as authored, for outputs that keep them.
+    pub authored: Authored,
     pub layout: Layout,
     pub stats: ImportStats,
     /// One line per thing the user should know about (dropped faces, skipped primitives).
@@ -265,7 +321,9 @@ pub enum ImportError {
 ///   each mesh once per node that uses it. ρ = `baseColorFactor` rgb, e = `emissiveFactor`
 ///   × `KHR_materials_emissive_strength`; the `baseColorTexture` and `emissiveTexture` of
 ///   materials in use are decoded ([`texture`]; averaged per element by `bake-texture`);
-///   vertex colours are ignored. A
+///   `COLOR_0` (VEC3/VEC4, float or normalized integers, within [0, 1]) multiplies ρ, per
+///   element its exact mean (`bake-texture`). The materials in use are also kept as authored
+///   ([`Scene::authored`]) with the textures and images they use. A
 ///   primitive without a material uses the glTF default material (ρ = 1, e = 0,
 ///   single-sided), appended after the file's materials when some primitive needs it.
 ///   A node whose world matrix is singular (a scale of 0) is skipped with a warning: its
@@ -274,8 +332,9 @@ pub enum ImportError {
 ///   used (a singular node transform, a non-finite or negative intensity or colour, a
 ///   non-positive range, spot cones outside 0 ≤ inner < outer ≤ π/2) is skipped with a
 ///   warning naming it.
-/// - OBJ: one mesh (and one identity node) per `tobj` model, all in one scene. ρ = `Kd`,
-///   e = `Ke`, single-sided. A face without a material (no `usemtl`, a missing MTL file or
+/// - OBJ: one mesh (and one identity node) per `tobj` model, all in one scene. ρ = `Kd`
+///   (× the mean of `map_Kd`, PNG or JPEG beside the OBJ, over each element, as a glTF
+///   `baseColorTexture` with the default sampler), e = `Ke`, single-sided. A face without a material (no `usemtl`, a missing MTL file or
 ///   an unknown name) uses a neutral grey default: ρ = 0.8, e = 0, appended after the MTL
 ///   materials when used.
 ///

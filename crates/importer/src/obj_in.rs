@@ -104,12 +104,13 @@ fn load_with(bytes: &[u8], source: &str, read_mtl: &ReadMtl) -> Result<Scene, Im
             checked.non_surfaces
         ));
     }
-    let materials = mtl
-        .unwrap_or_default()
-        .iter()
-        .map(convert_material)
-        .collect();
-    build_scene(&models, materials, stats, warnings)
+    let mtl = mtl.unwrap_or_default();
+    let materials = mtl.iter().map(convert_material).collect();
+    let mut scene = build_scene(&models, materials, stats, warnings)?;
+    // `map_Kd`: read beside the OBJ, as its material libraries are.
+    let maps: Vec<Option<String>> = mtl.iter().map(|m| m.diffuse_texture.clone()).collect();
+    crate::obj_texture::attach(&mut scene, &models, &maps, &|name| read_mtl(name))?;
+    Ok(scene)
 }
 
 /// The OBJ text as `tobj` will read it, and what was taken out.
@@ -411,6 +412,7 @@ fn build_scene(
         textures: Vec::new(),
         images: Vec::new(),
         uvs: vec![None; polygon_count],
+        authored: Default::default(),
         layout,
         stats,
         warnings,

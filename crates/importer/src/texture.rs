@@ -106,20 +106,77 @@ pub(crate) fn references(root: &Root, m: usize) -> [Option<Reference>; 2] {
     ]
 }
 
-/// Decodes every texture the materials in use reference and fills in their
-/// [`Material::base_color_texture`] / [`Material::emissive_texture`]. `used[m]`: material m is
-/// used by a baked primitive. A texture that cannot be read is an error naming it.
+/// The input's materials as authored, with the textures and encoded images they use, so the
+/// outputs can keep the asset (glTF input; OBJ `map_Kd` likewise).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Authored {
+    /// Per [`crate::Scene::materials`] entry: the material as written (glTF JSON, a
+    /// `gltf::json::Material`) with its texture indices rewritten into [`Authored::textures`];
+    /// the occlusion texture (a bake has the occlusion in its light already) and material
+    /// extensions other than `KHR_materials_emissive_strength` are left out. `None` for
+    /// materials no baked primitive uses and for the default material.
+    pub materials: Vec<Option<serde_json::Value>>,
+    pub textures: Vec<AuthoredTexture>,
+    pub images: Vec<EncodedImage>,
+}
+
+/// A texture of [`Authored`]: its sampler as written (glTF JSON `gltf::json::texture::Sampler`)
+/// and its image.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AuthoredTexture {
+    pub name: Option<String>,
+    pub sampler: Option<serde_json::Value>,
+    /// Index into [`Authored::images`].
+    pub image: usize,
+}
+
+/// An image file's bytes as read (PNG or JPEG).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EncodedImage {
+    pub name: Option<String>,
+    /// `image/png` or `image/jpeg`.
+    pub mime_type: &'static str,
+    pub bytes: Vec<u8>,
+}
+
+/// What [`load`] found: decoded textures for ρ and e, the authored materials, and warnings
+/// for kept slots that had to be dropped.
+pub(crate) struct Loaded {
+    pub(crate) textures: Vec<Texture>,
+    pub(crate) images: Vec<Image>,
+    pub(crate) authored: Authored,
+    pub(crate) warnings: Vec<String>,
+}
+
+/// Decodes every texture the materials in use reference for ρ and e and fills in their
+/// [`Material::base_color_texture`] / [`Material::emissive_texture`]; gathers the authored
+/// materials with every texture they keep. `used[m]`: material m is used by a baked
+/// primitive. A base-colour or emissive texture that cannot be read is an error naming it; a
+/// metallic-roughness or normal texture that cannot be read is dropped from the outputs with
+/// a warning (it does not change the bake).
 pub(crate) fn load(
     root: &Root,
     buffers: &[gltf::buffer::Data],
     base: Option<&Path>,
     materials: &mut [Material],
     used: &[bool],
-) -> Result<(Vec<Texture>, Vec<Image>), ImportError> {
-    let mut textures = Vec::new();
-    let mut images = Vec::new();
-    let mut texture_of: HashMap<usize, usize> = HashMap::new();
-    let mut image_of: HashMap<usize, usize> = HashMap::new();
+) -> Result<Loaded, ImportError> {
+    let mut loader = Loader {
+        root,
+        buffers,
+        base,
+        textures: Vec::new(),
+        images: Vec::new(),
+        texture_of: HashMap::new(),
+        image_of: HashMap::new(),
+        authored: Authored {
+            materials: vec![None; materials.len()],
+            ..Default::default()
+        },
+        authored_texture_of: HashMap::new(),
+        authored_image_of: HashMap::new(),
+        warnings: Vec::new(),
+    };
     for (m, material) in materials.iter_mut().enumerate() {
         if !used.get(m).copied().unwrap_or(false) {
             continue;
@@ -132,91 +189,264 @@ pub(crate) fn load(
             let Some((t, tex_coord, transform)) = reference else {
                 continue;
             };
-            let texture = match texture_of.get(&t) {
-                Some(&k) => k,
-                None => {
-                    let made = read_texture(root, buffers, base, t, &mut images, &mut image_of)?;
-                    textures.push(made);
-                    texture_of.insert(t, textures.len() - 1);
-                    textures.len() - 1
-                }
-            };
+            let texture = loader.decoded_texture(t)?;
             *slot = Some(TextureRef {
                 texture,
                 tex_coord,
                 transform,
             });
         }
+        if let Some(json) = root.materials.get(m) {
+            loader.authored.materials[m] = Some(loader.authored_material(m, json)?);
+        }
     }
-    Ok((textures, images))
+    Ok(Loaded {
+        textures: loader.textures,
+        images: loader.images,
+        authored: loader.authored,
+        warnings: loader.warnings,
+    })
 }
 
-fn read_texture(
-    root: &Root,
-    buffers: &[gltf::buffer::Data],
-    base: Option<&Path>,
-    t: usize,
-    images: &mut Vec<Image>,
-    image_of: &mut HashMap<usize, usize>,
-) -> Result<Texture, ImportError> {
-    let json = root
-        .textures
-        .get(t)
-        .ok_or_else(|| ImportError::Gltf(format!("texture {t} does not exist")))?;
-    let name = crate::describe("texture", json.name.as_deref(), t);
-    let fail = |problem: String| ImportError::InvalidValue {
-        what: name.clone(),
-        problem,
-    };
-    let (wrap, nearest) = match json.sampler.map(|s| s.value()) {
-        None => ([Wrap::Repeat; 2], false),
-        Some(s) => {
-            let sampler = root
-                .samplers
-                .get(s)
-                .ok_or_else(|| fail(format!("sampler {s} does not exist")))?;
-            let wrap = |w: &Checked<gltf::json::texture::WrappingMode>| {
-                use gltf::json::texture::WrappingMode as W;
-                match w {
-                    Checked::Valid(W::ClampToEdge) => Wrap::ClampToEdge,
-                    Checked::Valid(W::MirroredRepeat) => Wrap::MirroredRepeat,
-                    _ => Wrap::Repeat,
+struct Loader<'a> {
+    root: &'a Root,
+    buffers: &'a [gltf::buffer::Data],
+    base: Option<&'a Path>,
+    textures: Vec<Texture>,
+    images: Vec<Image>,
+    /// File texture → decoded texture; file image → decoded image.
+    texture_of: HashMap<usize, usize>,
+    image_of: HashMap<usize, usize>,
+    authored: Authored,
+    /// File texture → authored texture (or why it cannot be kept); file image likewise.
+    authored_texture_of: HashMap<usize, Result<usize, String>>,
+    authored_image_of: HashMap<usize, Result<usize, String>>,
+    warnings: Vec<String>,
+}
+
+impl Loader<'_> {
+    fn texture_name(&self, t: usize) -> String {
+        let name = self.root.textures.get(t).and_then(|x| x.name.as_deref());
+        crate::describe("texture", name, t)
+    }
+
+    /// Texture `t` of the file, decoded (sRGB → linear) with its sampler's filter and wraps.
+    fn decoded_texture(&mut self, t: usize) -> Result<usize, ImportError> {
+        if let Some(&k) = self.texture_of.get(&t) {
+            return Ok(k);
+        }
+        let json = self
+            .root
+            .textures
+            .get(t)
+            .ok_or_else(|| ImportError::Gltf(format!("texture {t} does not exist")))?;
+        let name = self.texture_name(t);
+        let fail = |problem: String| ImportError::InvalidValue {
+            what: name.clone(),
+            problem,
+        };
+        let (wrap, nearest) = match json.sampler.map(|s| s.value()) {
+            None => ([Wrap::Repeat; 2], false),
+            Some(s) => {
+                let sampler = self
+                    .root
+                    .samplers
+                    .get(s)
+                    .ok_or_else(|| fail(format!("sampler {s} does not exist")))?;
+                let wrap = |w: &Checked<gltf::json::texture::WrappingMode>| {
+                    use gltf::json::texture::WrappingMode as W;
+                    match w {
+                        Checked::Valid(W::ClampToEdge) => Wrap::ClampToEdge,
+                        Checked::Valid(W::MirroredRepeat) => Wrap::MirroredRepeat,
+                        _ => Wrap::Repeat,
+                    }
+                };
+                let nearest = matches!(
+                    sampler.mag_filter,
+                    Some(Checked::Valid(gltf::json::texture::MagFilter::Nearest))
+                );
+                ([wrap(&sampler.wrap_s), wrap(&sampler.wrap_t)], nearest)
+            }
+        };
+        let source = json.source.value();
+        let image = match self.image_of.get(&source) {
+            Some(&k) => k,
+            None => {
+                let encoded = self.authored_image(source).map_err(&fail)?;
+                let bytes = &self.authored.images[encoded].bytes;
+                let decoded = decode_image(bytes, source).map_err(&fail)?;
+                self.images.push(decoded);
+                self.image_of.insert(source, self.images.len() - 1);
+                self.images.len() - 1
+            }
+        };
+        self.textures.push(Texture {
+            name,
+            image,
+            wrap,
+            nearest,
+        });
+        self.texture_of.insert(t, self.textures.len() - 1);
+        Ok(self.textures.len() - 1)
+    }
+
+    /// File image `source` as an [`EncodedImage`] of [`Authored::images`] (read once).
+    fn authored_image(&mut self, source: usize) -> Result<usize, String> {
+        if let Some(known) = self.authored_image_of.get(&source) {
+            return known.clone();
+        }
+        let made = image_bytes(self.root, self.buffers, self.base, source).and_then(|bytes| {
+            let mime_type = mime_type(&bytes, &format!("image {source}"))?;
+            let name = self.root.images.get(source).and_then(|i| i.name.clone());
+            self.authored.images.push(EncodedImage {
+                name,
+                mime_type,
+                bytes,
+            });
+            Ok(self.authored.images.len() - 1)
+        });
+        self.authored_image_of.insert(source, made.clone());
+        made
+    }
+
+    /// File texture `t` as an [`AuthoredTexture`] (its sampler copied, its image read).
+    fn authored_texture(&mut self, t: usize) -> Result<usize, String> {
+        if let Some(known) = self.authored_texture_of.get(&t) {
+            return known.clone();
+        }
+        let made = match self.root.textures.get(t) {
+            None => Err(format!("texture {t} does not exist")),
+            Some(json) => {
+                let sampler = match json.sampler.map(|s| s.value()) {
+                    None => Ok(None),
+                    Some(s) => self
+                        .root
+                        .samplers
+                        .get(s)
+                        .ok_or_else(|| format!("sampler {s} does not exist"))
+                        .and_then(|x| serde_json::to_value(x).map_err(|e| e.to_string()))
+                        .map(Some),
+                };
+                let name = json.name.clone();
+                let source = json.source.value();
+                sampler.and_then(|sampler| {
+                    let image = self.authored_image(source)?;
+                    self.authored.textures.push(AuthoredTexture {
+                        name,
+                        sampler,
+                        image,
+                    });
+                    Ok(self.authored.textures.len() - 1)
+                })
+            }
+        };
+        self.authored_texture_of.insert(t, made.clone());
+        made
+    }
+
+    /// Material `m` as written, its kept texture slots pointing into [`Authored::textures`].
+    fn authored_material(
+        &mut self,
+        m: usize,
+        json: &gltf::json::Material,
+    ) -> Result<serde_json::Value, ImportError> {
+        let mut material = json.clone();
+        material.occlusion_texture = None;
+        material.extensions = json.extensions.as_ref().and_then(|e| {
+            e.emissive_strength
+                .as_ref()
+                .map(|s| gltf::json::extensions::material::Material {
+                    emissive_strength: Some(s.clone()),
+                    ..Default::default()
+                })
+        });
+        let name = crate::describe("material", json.name.as_deref(), m);
+        let mut keep = |slot: &str, index: &mut gltf::json::Index<gltf::json::Texture>| {
+            let t = index.value();
+            match self.authored_texture(t) {
+                Ok(k) => {
+                    *index = gltf::json::Index::new(k as u32);
+                    true
                 }
-            };
-            let nearest = matches!(
-                sampler.mag_filter,
-                Some(Checked::Valid(gltf::json::texture::MagFilter::Nearest))
-            );
-            ([wrap(&sampler.wrap_s), wrap(&sampler.wrap_t)], nearest)
+                Err(why) => {
+                    let texture = self.texture_name(t);
+                    self.warnings.push(format!(
+                        "{name}: its {slot} {texture} is left out of the outputs ({why})"
+                    ));
+                    false
+                }
+            }
+        };
+        let pbr = &mut material.pbr_metallic_roughness;
+        if let Some(info) = pbr.base_color_texture.as_mut() {
+            if !keep("baseColorTexture", &mut info.index) {
+                pbr.base_color_texture = None;
+            }
         }
-    };
-    let source = json.source.value();
-    let image = match image_of.get(&source) {
-        Some(&k) => k,
-        None => {
-            let decoded = decode_image(root, buffers, base, source).map_err(fail)?;
-            images.push(decoded);
-            image_of.insert(source, images.len() - 1);
-            images.len() - 1
+        if let Some(info) = pbr.metallic_roughness_texture.as_mut() {
+            if !keep("metallicRoughnessTexture", &mut info.index) {
+                pbr.metallic_roughness_texture = None;
+            }
         }
-    };
-    Ok(Texture {
-        name,
-        image,
-        wrap,
-        nearest,
-    })
+        if let Some(info) = material.normal_texture.as_mut() {
+            if !keep("normalTexture", &mut info.index) {
+                material.normal_texture = None;
+            }
+        }
+        if let Some(info) = material.emissive_texture.as_mut() {
+            if !keep("emissiveTexture", &mut info.index) {
+                material.emissive_texture = None;
+            }
+        }
+        serde_json::to_value(&material).map_err(|e| ImportError::Gltf(format!("{name}: {e}")))
+    }
+}
+
+/// `image/png` or `image/jpeg` for the bytes of `what`, or why they are neither.
+pub(crate) fn mime_type(bytes: &[u8], what: &str) -> Result<&'static str, String> {
+    match image::guess_format(bytes) {
+        Ok(image::ImageFormat::Png) => Ok("image/png"),
+        Ok(image::ImageFormat::Jpeg) => Ok("image/jpeg"),
+        Ok(format) => Err(format!(
+            "{what} is {format:?}: only PNG and JPEG textures are supported"
+        )),
+        Err(_) => Err(format!(
+            "{what}: not a PNG or JPEG file (KTX2, WebP and others are not supported)"
+        )),
+    }
+}
+
+/// The TEXCOORD sets the kept textures of an authored material use (after
+/// `KHR_texture_transform`'s override), as flags for sets 0 and 1.
+pub fn authored_sets(material: &serde_json::Value) -> [bool; 2] {
+    let mut sets = [false; 2];
+    let slots = [
+        &material["pbrMetallicRoughness"]["baseColorTexture"],
+        &material["pbrMetallicRoughness"]["metallicRoughnessTexture"],
+        &material["normalTexture"],
+        &material["emissiveTexture"],
+    ];
+    for info in slots.into_iter().filter(|i| i.is_object()) {
+        let set = info["extensions"]["KHR_texture_transform"]["texCoord"]
+            .as_u64()
+            .or_else(|| info["texCoord"].as_u64())
+            .unwrap_or(0);
+        if let Some(flag) = sets.get_mut(set as usize) {
+            *flag = true;
+        }
+    }
+    sets
 }
 
 /// The largest image accepted (texels): a memory guard against a hostile header.
 const MAX_TEXELS: u64 = 1 << 28;
 
-fn decode_image(
+fn image_bytes(
     root: &Root,
     buffers: &[gltf::buffer::Data],
     base: Option<&Path>,
     source: usize,
-) -> Result<Image, String> {
+) -> Result<Vec<u8>, String> {
     let json = root
         .images
         .get(source)
@@ -266,14 +496,14 @@ fn decode_image(
             ))
         }
     };
-    let format = image::guess_format(bytes).map_err(|_| {
-        format!("image {source}: not a PNG or JPEG file (KTX2, WebP and others are not supported)")
-    })?;
-    if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
-        return Err(format!(
-            "image {source} is {format:?}: only PNG and JPEG textures are supported"
-        ));
-    }
+    Ok(bytes.to_vec())
+}
+
+/// Decodes PNG or JPEG `bytes` (checked by [`Loader::authored_image`]) of file image
+/// `source` to linear texels.
+pub(crate) fn decode_image(bytes: &[u8], source: usize) -> Result<Image, String> {
+    let format = image::guess_format(bytes)
+        .map_err(|_| format!("image {source}: not a PNG or JPEG file"))?;
     let reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
     let (w, h) = reader
         .into_dimensions()

@@ -2,7 +2,9 @@
 //! bake can be checked with no viewer installed.
 //!
 //! The file is drawn as an unlit viewer draws it: each vertex shows `COLOR_0` × the material's
-//! base colour (or `_RADIOSITY` × an exposure), interpolated across triangles — so a
+//! base colour (or `_RADIOSITY` × an exposure), interpolated across triangles, times the
+//! base-colour texture at each pixel's interpolated UV (sampler and `KHR_texture_transform`
+//! honoured) — so a
 //! `--shading flat` bake shows constant elements (the paper's Figure 6) and a smooth one shows
 //! the interpolated vertex values (Figure 8). Single-sided triangles are culled from the back,
 //! as glTF requires; that is how the camera looks into a closed room from outside through its
@@ -19,6 +21,7 @@ mod camera;
 mod math;
 mod raster;
 pub mod scene;
+pub mod texture;
 
 pub use camera::{Camera, FRAMING_YFOV};
 /// The `image` crate this one writes with (for reading PNGs back in tests).

@@ -6,6 +6,7 @@
 use crate::camera::Camera;
 use crate::math::Vec3;
 use crate::scene::Scene;
+use crate::texture::Texture;
 
 /// A rendered image: linear RGB per pixel, row by row from the top.
 #[derive(Clone, Debug, PartialEq)]
@@ -33,6 +34,7 @@ pub struct RenderStats {
 struct ClipVertex {
     view: Vec3,
     color: Vec3,
+    uv: [f64; 2],
 }
 
 /// Renders `scene` through `camera` into a `width` × `height` frame over `background`
@@ -56,7 +58,9 @@ pub fn render(
         let corners = triangle.vertices.map(|v| ClipVertex {
             view: camera.to_view(v.position),
             color: v.color,
+            uv: v.uv,
         });
+        let texture = triangle.texture.and_then(|k| scene.textures.get(k));
         let polygon = clip_near(&corners, camera.znear);
         if polygon.len() < 3 {
             stats.discarded += 1;
@@ -68,6 +72,7 @@ pub fn render(
                 pixel: camera.view_to_pixel(v.view, width, height),
                 inverse_depth: 1.0 / v.view[2],
                 color: v.color,
+                uv: v.uv,
             })
             .collect();
         // The clipped polygon is convex and keeps the triangle's orientation: its signed area
@@ -84,7 +89,7 @@ pub fn render(
         }
         let mut covered = false;
         for k in 1..screen.len() - 1 {
-            covered |= draw(&mut frame, [screen[0], screen[k], screen[k + 1]]);
+            covered |= draw(&mut frame, [screen[0], screen[k], screen[k + 1]], texture);
         }
         stats.rasterized += usize::from(covered);
     }
@@ -97,6 +102,7 @@ struct Projected {
     pixel: [f64; 2],
     inverse_depth: f64,
     color: Vec3,
+    uv: [f64; 2],
 }
 
 /// Sutherland–Hodgman against the plane z = `znear`: the part of the triangle at z ≥ `znear`
@@ -122,6 +128,7 @@ fn clip_near(corners: &[ClipVertex; 3], znear: f64) -> Vec<ClipVertex> {
             out.push(ClipVertex {
                 view,
                 color: lerp(a.color, b.color),
+                uv: std::array::from_fn(|i| a.uv[i] + t * (b.uv[i] - a.uv[i])),
             });
         }
     }
@@ -164,8 +171,9 @@ fn owns_edge(a: [f64; 2], b: [f64; 2]) -> bool {
     dy > 0.0 || (dy == 0.0 && dx < 0.0)
 }
 
-/// Rasterizes one triangle with depth test; returns whether it covered any pixel centre.
-fn draw(frame: &mut Frame, mut t: [Projected; 3]) -> bool {
+/// Rasterizes one triangle with depth test, its colour times `texture` at the interpolated
+/// UV; returns whether it covered any pixel centre.
+fn draw(frame: &mut Frame, mut t: [Projected; 3], texture: Option<&Texture>) -> bool {
     let mut area = edge(t[0].pixel, t[1].pixel, t[2].pixel);
     if area < 0.0 {
         t.swap(1, 2);
@@ -218,12 +226,20 @@ fn draw(frame: &mut Frame, mut t: [Projected; 3]) -> bool {
                 continue;
             }
             frame.depth[index] = depth;
-            frame.pixels[index] = std::array::from_fn(|band| {
+            let interpolate = |value: &dyn Fn(&Projected) -> f64| {
                 (0..3)
-                    .map(|k| weights[k] * t[k].inverse_depth * t[k].color[band])
+                    .map(|k| weights[k] * t[k].inverse_depth * value(&t[k]))
                     .sum::<f64>()
                     * depth
-            });
+            };
+            let texel = match texture {
+                Some(texture) => {
+                    texture.sample([interpolate(&|v| v.uv[0]), interpolate(&|v| v.uv[1])])
+                }
+                None => [1.0; 3],
+            };
+            frame.pixels[index] =
+                std::array::from_fn(|band| interpolate(&|v| v.color[band]) * texel[band]);
         }
     }
     covered

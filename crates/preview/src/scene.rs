@@ -1,9 +1,11 @@
 //! Reads a glTF/GLB file into world-space coloured triangles and the cameras its scene holds.
 
 use crate::math::{self, Mat4, Vec3};
+use crate::texture::{self, Texture};
 use crate::PreviewError;
 use gltf::mesh::Mode;
 use gltf::mesh::Semantic;
+use std::collections::HashMap;
 use std::path::Path;
 
 /// Where vertex colours come from.
@@ -23,6 +25,8 @@ pub struct Vertex {
     pub position: Vec3,
     /// Linear RGB.
     pub color: Vec3,
+    /// The base-colour texture's coordinates (0 when the triangle has no texture).
+    pub uv: [f64; 2],
 }
 
 /// A triangle in world space. The front side is the counter-clockwise one (glTF's rule); the
@@ -32,6 +36,8 @@ pub struct Triangle {
     pub vertices: [Vertex; 3],
     /// Drawn from both sides (the material's `doubleSided`); otherwise back faces are culled.
     pub double_sided: bool,
+    /// Index into [`Scene::textures`]: the base-colour texture that multiplies the colour.
+    pub texture: Option<usize>,
 }
 
 /// A perspective camera placed by a node of the scene. It looks down the node's −Z axis with
@@ -53,6 +59,8 @@ pub struct Scene {
     pub cameras: Vec<CameraNode>,
     /// Primitives that are points or lines, not drawn.
     pub skipped_primitives: usize,
+    /// Base-colour textures, one per material that has one.
+    pub textures: Vec<Texture>,
 }
 
 /// An axis-aligned box.
@@ -83,7 +91,8 @@ impl Scene {
 }
 
 /// Loads the default scene of a `.gltf` or `.glb` file (the first scene when none is the
-/// default). Textures are not decoded.
+/// default). Base-colour textures are decoded (with their sampler and transform) and
+/// multiply the vertex colours as a viewer's do.
 pub fn load(path: &Path, source: ColorSource) -> Result<Scene, PreviewError> {
     let read_error = |source: gltf::Error| PreviewError::Read {
         path: path.to_path_buf(),
@@ -104,6 +113,10 @@ pub fn load(path: &Path, source: ColorSource) -> Result<Scene, PreviewError> {
         .ok_or_else(|| invalid("the file has no scene".to_string()))?;
 
     let mut out = Scene::default();
+    let mut textures = TextureCache {
+        base: base.or(Some(Path::new("."))),
+        of_material: HashMap::new(),
+    };
     let mut stack: Vec<(gltf::Node, Mat4)> = scene
         .nodes()
         .map(|n| (n, math::IDENTITY))
@@ -144,8 +157,15 @@ pub fn load(path: &Path, source: ColorSource) -> Result<Scene, PreviewError> {
                         primitive.index()
                     )
                 };
-                add_primitive(&primitive, &buffers, &world, source, &mut out)
-                    .map_err(|message| invalid(format!("{}: {message}", what())))?;
+                add_primitive(
+                    &primitive,
+                    &buffers,
+                    &world,
+                    source,
+                    &mut textures,
+                    &mut out,
+                )
+                .map_err(|message| invalid(format!("{}: {message}", what())))?;
             }
         }
         let children: Vec<_> = node.children().collect();
@@ -156,12 +176,39 @@ pub fn load(path: &Path, source: ColorSource) -> Result<Scene, PreviewError> {
     Ok(out)
 }
 
+/// Each material's decoded base-colour texture (index into [`Scene::textures`]) and the
+/// TEXCOORD set it reads.
+struct TextureCache<'a> {
+    base: Option<&'a Path>,
+    of_material: HashMap<Option<usize>, Option<(usize, u32)>>,
+}
+
+impl TextureCache<'_> {
+    fn get(
+        &mut self,
+        material: &gltf::Material,
+        buffers: &[gltf::buffer::Data],
+        out: &mut Scene,
+    ) -> Result<Option<(usize, u32)>, String> {
+        if let Some(known) = self.of_material.get(&material.index()) {
+            return Ok(*known);
+        }
+        let made = texture::base_colour(material, buffers, self.base)?.map(|(t, set)| {
+            out.textures.push(t);
+            (out.textures.len() - 1, set)
+        });
+        self.of_material.insert(material.index(), made);
+        Ok(made)
+    }
+}
+
 /// Appends one primitive's triangles (in world space) to `out`.
 fn add_primitive(
     primitive: &gltf::Primitive,
     buffers: &[gltf::buffer::Data],
     world: &Mat4,
     source: ColorSource,
+    textures: &mut TextureCache,
     out: &mut Scene,
 ) -> Result<(), String> {
     if !matches!(
@@ -196,6 +243,25 @@ fn add_primitive(
     let base = material.pbr_metallic_roughness().base_color_factor();
     let base = [base[0], base[1], base[2]].map(f64::from);
     let double_sided = material.double_sided();
+    let texture = textures.get(&material, buffers, out)?;
+    let uvs: Option<Vec<[f32; 2]>> = match texture {
+        Some((_, set)) => Some(
+            reader
+                .read_tex_coords(set)
+                .ok_or_else(|| {
+                    format!("its base-colour texture reads TEXCOORD_{set}, which is missing")
+                })?
+                .into_f32()
+                .collect(),
+        ),
+        None => None,
+    };
+    if uvs.as_ref().is_some_and(|uv| uv.len() != n) {
+        return Err(format!(
+            "TEXCOORD has a different count from POSITION ({n})"
+        ));
+    }
+    let texture = texture.map(|(k, _)| k);
 
     let mirrored = math::linear_determinant(world) < 0.0;
     let mut vertices = Vec::with_capacity(n);
@@ -216,7 +282,12 @@ fn add_primitive(
         if !position.iter().chain(&color).all(|v| v.is_finite()) {
             return Err(format!("vertex {k} has a non-finite position or colour"));
         }
-        vertices.push(Vertex { position, color });
+        let uv = uvs.as_ref().map_or([0.0; 2], |uv| uv[k].map(f64::from));
+        vertices.push(Vertex {
+            position,
+            color,
+            uv,
+        });
     }
 
     let indices: Vec<usize> = match reader.read_indices() {
@@ -247,6 +318,7 @@ fn add_primitive(
         out.triangles.push(Triangle {
             vertices: order.map(|i| vertices[i]),
             double_sided,
+            texture,
         });
     }
     Ok(())

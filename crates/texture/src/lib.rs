@@ -28,42 +28,19 @@ pub fn element_mean(
     corners: &[DVec3],
     normal: DVec3,
 ) -> [f64; 3] {
-    let origin = corners[0];
-    let u_axis = (corners[1] - corners[0]).normalize_or_zero();
-    let v_axis = normal.cross(u_axis);
-    let to_2d = |p: DVec3| DVec2::new((p - origin).dot(u_axis), (p - origin).dot(v_axis));
-    let element: Vec<DVec2> = corners.iter().map(|&p| to_2d(p)).collect();
     let set = (reference.tex_coord as usize).min(1);
-    let (mut piece, mut scratch) = (Vec::new(), Vec::new());
     let mut total = [0.0; 3];
     let mut weight = 0.0;
-    for triangle in &uv.triangles {
-        let p = triangle.positions.map(to_2d);
+    for_each_piece(uv, corners, normal, |triangle, p, piece, area| {
         let q = triangle.uv[set].map(|t| reference.apply(t));
-        clip::clip_convex(&element, &p, &mut piece, &mut scratch);
-        let area = clip::signed_area(&piece).abs();
-        if piece.len() < 3 || area <= 0.0 {
-            continue;
-        }
         // The affine map of this triangle: X ↦ q0 + M (X − p0), M = [q1−q0 q2−q0][p1−p0 p2−p0]⁻¹.
-        let (a, b) = (p[1] - p[0], p[2] - p[0]);
-        let det = a.perp_dot(b);
-        if det == 0.0 {
-            continue;
-        }
-        let to_uv = |x: DVec2| {
-            let d = x - p[0];
-            let s = d.perp_dot(b) / det;
-            let t = a.perp_dot(d) / det;
-            q[0] + (q[1] - q[0]) * s + (q[2] - q[0]) * t
-        };
-        let in_uv: Vec<DVec2> = piece.iter().map(|&x| to_uv(x)).collect();
+        let in_uv: Vec<DVec2> = piece.iter().map(|&x| affine(p, q, x)).collect();
         let mean = polygon_mean(&in_uv, texture, image);
         for c in 0..3 {
             total[c] += area * mean[c];
         }
         weight += area;
-    }
+    });
     if weight > 0.0 {
         return total.map(|t| t / weight);
     }
@@ -73,6 +50,70 @@ pub fn element_mean(
         reference.apply((t.uv[set][0] + t.uv[set][1] + t.uv[set][2]) / 3.0)
     });
     sample(texture, image, centre)
+}
+
+/// The mean of the input's `COLOR_0` over the element `corners` (as [`element_mean`]): on
+/// each piece of the element inside one source triangle the colour is linear, so its mean
+/// there is its value at the piece's centroid — exact. `None` when the polygon has no
+/// colours.
+pub fn element_colour_mean(uv: &PolygonUv, corners: &[DVec3], normal: DVec3) -> Option<[f64; 3]> {
+    uv.triangles.first()?.color?;
+    let mut total = DVec3::ZERO;
+    let mut weight = 0.0;
+    for_each_piece(uv, corners, normal, |triangle, p, piece, area| {
+        let Some(color) = triangle.color else {
+            return;
+        };
+        let centroid = clip::centroid(piece);
+        // Barycentric coordinates of the centroid in the source triangle.
+        let (a, b) = (p[1] - p[0], p[2] - p[0]);
+        let det = a.perp_dot(b);
+        let d = centroid - p[0];
+        let (s, t) = (d.perp_dot(b) / det, a.perp_dot(d) / det);
+        total += (color[0] + (color[1] - color[0]) * s + (color[2] - color[0]) * t) * area;
+        weight += area;
+    });
+    if weight > 0.0 {
+        return Some((total / weight).to_array());
+    }
+    let t = uv.triangles.first()?;
+    t.color.map(|c| ((c[0] + c[1] + c[2]) / 3.0).to_array())
+}
+
+/// Calls `f(triangle, its corners in the element's plane, piece, piece area)` for each piece
+/// of the element `corners` (planar convex, counter-clockwise about `normal`) inside one
+/// source triangle of `uv` with positive area.
+fn for_each_piece(
+    uv: &PolygonUv,
+    corners: &[DVec3],
+    normal: DVec3,
+    mut f: impl FnMut(&importer::UvTriangle, [DVec2; 3], &[DVec2], f64),
+) {
+    let origin = corners[0];
+    let u_axis = (corners[1] - corners[0]).normalize_or_zero();
+    let v_axis = normal.cross(u_axis);
+    let to_2d = |p: DVec3| DVec2::new((p - origin).dot(u_axis), (p - origin).dot(v_axis));
+    let element: Vec<DVec2> = corners.iter().map(|&p| to_2d(p)).collect();
+    let (mut piece, mut scratch) = (Vec::new(), Vec::new());
+    for triangle in &uv.triangles {
+        let p = triangle.positions.map(to_2d);
+        clip::clip_convex(&element, &p, &mut piece, &mut scratch);
+        let area = clip::signed_area(&piece).abs();
+        if piece.len() < 3 || area <= 0.0 || (p[1] - p[0]).perp_dot(p[2] - p[0]) == 0.0 {
+            continue;
+        }
+        f(triangle, p, &piece, area);
+    }
+}
+
+/// The affine map taking triangle `p` to `q`, at `x`.
+fn affine(p: [DVec2; 3], q: [DVec2; 3], x: DVec2) -> DVec2 {
+    let (a, b) = (p[1] - p[0], p[2] - p[0]);
+    let det = a.perp_dot(b);
+    let d = x - p[0];
+    let s = d.perp_dot(b) / det;
+    let t = a.perp_dot(d) / det;
+    q[0] + (q[1] - q[0]) * s + (q[2] - q[0]) * t
 }
 
 /// The texture at one UV point (the filter and wrap modes applied).
@@ -258,9 +299,11 @@ mod tests {
         let t = |a: usize, b: usize, c: usize| UvTriangle {
             positions: [p[a], p[b], p[c]],
             uv: [[a, b, c].map(|k| DVec2::new(p[k].x, p[k].y) * uv_scale); 2],
+            color: None,
         };
         PolygonUv {
             triangles: vec![t(0, 1, 2), t(0, 2, 3)],
+            sets: [true; 2],
         }
     }
 

@@ -57,6 +57,7 @@ pub fn fixture() -> Fixture {
         textures: Vec::new(),
         images: Vec::new(),
         uvs: vec![None; polygon_count],
+        authored: Default::default(),
         layout,
         stats: ImportStats {
             faces_read: 12,
