@@ -7,12 +7,12 @@
 //! check texture, image and sampler objects (it never needed them), so nothing here may trust
 //! an index.
 
+use crate::files::Files;
 use crate::{ImportError, Material};
 use glam::DVec2;
 use gltf::json::validation::Checked;
 use gltf::json::Root;
 use std::collections::HashMap;
-use std::path::Path;
 
 /// A decoded image: linear RGB per texel, row-major, the first row at v = 0 (glTF's UV origin
 /// is the image's top-left corner).
@@ -112,7 +112,7 @@ pub(crate) fn references(root: &Root, m: usize) -> [Option<Reference>; 2] {
 pub(crate) fn load(
     root: &Root,
     buffers: &[gltf::buffer::Data],
-    base: Option<&Path>,
+    files: Option<&Files>,
     materials: &mut [Material],
     used: &[bool],
 ) -> Result<(Vec<Texture>, Vec<Image>), ImportError> {
@@ -135,7 +135,7 @@ pub(crate) fn load(
             let texture = match texture_of.get(&t) {
                 Some(&k) => k,
                 None => {
-                    let made = read_texture(root, buffers, base, t, &mut images, &mut image_of)?;
+                    let made = read_texture(root, buffers, files, t, &mut images, &mut image_of)?;
                     textures.push(made);
                     texture_of.insert(t, textures.len() - 1);
                     textures.len() - 1
@@ -154,7 +154,7 @@ pub(crate) fn load(
 fn read_texture(
     root: &Root,
     buffers: &[gltf::buffer::Data],
-    base: Option<&Path>,
+    files: Option<&Files>,
     t: usize,
     images: &mut Vec<Image>,
     image_of: &mut HashMap<usize, usize>,
@@ -194,7 +194,7 @@ fn read_texture(
     let image = match image_of.get(&source) {
         Some(&k) => k,
         None => {
-            let decoded = decode_image(root, buffers, base, source).map_err(fail)?;
+            let decoded = decode_image(root, buffers, files, source).map_err(fail)?;
             images.push(decoded);
             image_of.insert(source, images.len() - 1);
             images.len() - 1
@@ -214,7 +214,7 @@ const MAX_TEXELS: u64 = 1 << 28;
 fn decode_image(
     root: &Root,
     buffers: &[gltf::buffer::Data],
-    base: Option<&Path>,
+    files: Option<&Files>,
     source: usize,
 ) -> Result<Image, String> {
     let json = root
@@ -248,14 +248,19 @@ fn decode_image(
                     .ok_or_else(|| format!("image {source}: invalid base64 in its data URI"))?;
                 &owned
             } else {
-                let base = base.ok_or_else(|| {
+                let files = files.ok_or_else(|| {
                     format!(
                         "image {source}: external file {uri:?} but the scene was read from memory"
                     )
                 })?;
-                let decoded = crate::gltf_in::percent_decoded_path(uri);
-                let path = base.join(decoded);
-                owned = std::fs::read(&path)
+                let path = if uri.starts_with("file:") {
+                    files.file_uri(uri)
+                } else {
+                    files.resolve(&crate::gltf_in::percent_decoded_path(uri))
+                }
+                .map_err(|e| format!("image {source}: {e}"))?;
+                owned = files
+                    .read(&path)
                     .map_err(|e| format!("cannot read image file {}: {e}", path.display()))?;
                 &owned
             }
