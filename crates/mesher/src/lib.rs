@@ -65,7 +65,7 @@ pub enum MeshError {
     InvalidSubdivision(String),
     #[error("polygon {polygon} has {sides} vertices; the mesher takes triangles and quads")]
     UnsupportedPolygon { polygon: usize, sides: usize },
-    /// The count, or a lower bound of it (`more than …`) when it does not fit in a u64.
+    /// The count, or a lower bound of it (`at least 10^…`) when it does not fit in a u64.
     #[error("subdivision would create {0} elements, more than the mesher's limit of {max}", max = MAX_ELEMENTS)]
     TooManyElements(String),
 }
@@ -140,10 +140,10 @@ fn plan(
         }
         _ => {}
     }
-    let too_many = |polygon_count: Option<u64>| {
-        MeshError::TooManyElements(match polygon_count {
+    let too_many = |count: Option<u64>| {
+        MeshError::TooManyElements(match count {
             Some(n) => n.to_string(),
-            None => format!("more than {MAX_ELEMENTS}"),
+            None => approximate_count(polygons, subdivision),
         })
     };
     let mut total: u64 = 0;
@@ -165,6 +165,34 @@ fn plan(
         plan.push((nu as u32, nv as u32));
     }
     Ok((total, plan))
+}
+
+/// A lower bound of the element count for a message when it does not fit in a u64: the
+/// largest polygon's, as a power of ten (`at least 10^600`).
+fn approximate_count(polygons: &[Polygon], subdivision: Subdivision) -> String {
+    let l = match subdivision {
+        Subdivision::MaxSize(l) => l,
+        Subdivision::Count(n) => return format!("at least {}", u64::from(n) * u64::from(n)),
+    };
+    // Logarithms: the count itself overflows f64 for l = 1e-300.
+    let log10_largest = polygons
+        .iter()
+        .map(|p| {
+            let v = &p.vertices;
+            let (a, b) = match v.len() {
+                4 => (
+                    v[0].distance(v[1]).max(v[3].distance(v[2])),
+                    v[0].distance(v[3]).max(v[1].distance(v[2])),
+                ),
+                _ => {
+                    let e = v[0].distance(v[1]).max(v[1].distance(v[2]));
+                    (e, e)
+                }
+            };
+            (a / l).max(1.0).log10() + (b / l).max(1.0).log10()
+        })
+        .fold(f64::NEG_INFINITY, f64::max);
+    format!("at least 10^{}", log10_largest.max(0.0).floor())
 }
 
 /// Divisions along u and v; `None` when one alone exceeds [`MAX_ELEMENTS`].
@@ -416,11 +444,12 @@ mod tests {
             element_count(&[quad()], Subdivision::MaxSize(1e-300)),
             Err(MeshError::TooManyElements(_))
         ));
-        // 131072 × 73271: over the limit, counted exactly.
-        assert!(matches!(
-            element_count(&[quad()], Subdivision::MaxSize(1.0 / 65536.0)),
-            Err(MeshError::TooManyElements(n)) if n == (131_072u64 * 73_271).to_string()
-        ));
+        // 131072 × 73272 (ceil(√1.25 × 65536)): over the limit, counted exactly.
+        let over = element_count(&[quad()], Subdivision::MaxSize(1.0 / 65536.0));
+        assert!(
+            matches!(&over, Err(MeshError::TooManyElements(n)) if *n == (131_072u64 * 73_272).to_string()),
+            "{over:?}"
+        );
         assert_eq!(
             element_count(&[quad()], Subdivision::Count(3)).ok(),
             Some(9)
