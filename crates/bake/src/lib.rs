@@ -265,7 +265,10 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
         _ => {
             // Dense: every element pair, exact (or within the estimator's tolerance).
             check_memory(n as u64, TransportKind::Dense, solve, distinct_bands(&rho))?;
-            let occludable = occluders.occludable_pairs();
+            // The occlusion pre-pass (polygon pairs × candidate occluders) can take seconds.
+            progress.start("occlusion", occluders.len() as u64);
+            let occludable = occluders.occludable_pairs_with_progress(&|k| progress.advance(k));
+            progress.finish();
             let effects = occludable.effects();
             stage("occludable_pairs", &mut lap);
             let mut form_factors =

@@ -212,6 +212,32 @@ mod tests {
         );
     }
 
+    #[cfg(unix)]
+    #[test]
+    fn a_link_inside_the_folder_that_leads_out_is_refused() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let scenes = dir.path().join("scenes");
+        std::fs::create_dir(&scenes).expect("mkdir");
+        std::fs::write(dir.path().join("secret.bin"), b"x").expect("write");
+        std::fs::write(scenes.join("real.bin"), b"x").expect("write");
+        std::os::unix::fs::symlink(dir.path().join("secret.bin"), scenes.join("out.bin"))
+            .expect("symlink");
+        std::os::unix::fs::symlink(scenes.join("real.bin"), scenes.join("in.bin"))
+            .expect("symlink");
+        let files = Files::new(&scenes.join("s.gltf"), false);
+        let error = files.resolve(Path::new("out.bin")).expect_err("leads out");
+        assert!(error.contains("through a link"), "{error}");
+        assert_eq!(
+            files.resolve(Path::new("in.bin")),
+            Ok(scenes.join("in.bin"))
+        );
+        let open = Files::new(&scenes.join("s.gltf"), true);
+        assert_eq!(
+            open.resolve(Path::new("out.bin")),
+            Ok(scenes.join("out.bin"))
+        );
+    }
+
     #[test]
     fn faces_are_counted_by_their_keyword() {
         let dir = tempfile::tempdir().expect("temp dir");
