@@ -52,8 +52,9 @@ pub struct Cli {
 
     /// Truncate the light transport after exactly K interreflections instead of solving the
     /// system exactly (K = 0: direct light from emitters only; the paper's Figure 7).
-    /// Not with --solver.
-    #[arg(long, value_name = "K", conflicts_with = "solver")]
+    /// At most 10000 (each bounce multiplies by the transport once). Not with --solver.
+    #[arg(long, value_name = "K", conflicts_with = "solver",
+          value_parser = clap::value_parser!(u32).range(0..=i64::from(bake_core::MAX_BOUNCES)))]
     pub bounces: Option<u32>,
     /// How to solve (I − ρF) b = e exactly. `direct`: LU factorisation, O(n³) time and an n×n
     /// matrix per distinct reflectance band; always finishes. `iterative`: GMRES, O(n²) per
@@ -196,6 +197,12 @@ pub struct Cli {
     /// Worker threads (default: all cores). Output bytes do not depend on it.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub threads: Option<u32>,
+    /// Let the scene read files outside its own folder: buffer, image and `mtllib` URIs that
+    /// are absolute, `file:` URIs, or relative paths that leave the folder (`..`, or a link
+    /// inside it that points out). Refused by default, so that a scene only reads where the
+    /// user points (docs/input-handling.md, "Files a scene reads").
+    #[arg(long)]
+    pub allow_outside_paths: bool,
     /// Print nothing but errors (no warnings, progress or summary).
     #[arg(long, short)]
     pub quiet: bool,

@@ -26,6 +26,38 @@ fn internal(error: anyhow::Error) -> Failure {
     Failure { code: 3, error }
 }
 
+/// Two paths of the bake are one file: a usage error (exit 2), refused before writing.
+fn same_file(error: exporter::SameFile) -> Failure {
+    Failure {
+        code: 2,
+        error: anyhow!(error),
+    }
+}
+
+/// The lightmap bake's files for `cli.target` (`both`: beside OUT; `lightmap`: OUT itself).
+fn lightmap_paths(cli: &Cli) -> anyhow::Result<exporter::LightmapPaths> {
+    match cli.target {
+        Target::Both => exporter::LightmapPaths::beside(&cli.output),
+        _ => exporter::LightmapPaths::alone(&cli.output),
+    }
+    .with_context(|| format!("cannot write {}", cli.output.display()))
+}
+
+/// Every file this bake may write, in the order they are renamed into place (OUT last).
+fn output_files(cli: &Cli) -> anyhow::Result<Vec<std::path::PathBuf>> {
+    let mut files: Vec<std::path::PathBuf> = cli.report.iter().cloned().collect();
+    if cli.target != Target::Vertex {
+        files.extend(lightmap_paths(cli)?.files()?);
+    }
+    if cli.target != Target::Lightmap {
+        files.extend(
+            exporter::gltf_files(&cli.output)
+                .with_context(|| format!("cannot write {}", cli.output.display()))?,
+        );
+    }
+    Ok(files)
+}
+
 pub fn run(cli: &Cli) -> Result<(), Failure> {
     let started = Instant::now();
     if let Some(threads) = cli.threads {
@@ -48,9 +80,11 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             )));
         }
     }
-    // Fail before the bake, not after it: a missing report directory would otherwise fail
-    // only once OUT has been written.
-    for path in std::iter::once(&cli.output).chain(&cli.report) {
+    // Fail before the bake, not after it: every file of the set must be writable where it
+    // is named (an existing directory, not itself a directory), and none may be an input.
+    let planned = output_files(cli).map_err(internal)?;
+    // OUT first (it is renamed last), so a missing directory is named by OUT.
+    for path in planned.iter().rev() {
         let dir = match path.parent() {
             Some(dir) if !dir.as_os_str().is_empty() => dir,
             _ => std::path::Path::new("."),
@@ -62,16 +96,31 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
                 dir.display()
             )));
         }
+        exporter::check_target(path).map_err(|e| internal(anyhow!(e)))?;
     }
     let input = &cli.input;
+    exporter::check_distinct(&planned, std::slice::from_ref(input)).map_err(same_file)?;
 
     // 1. Import.
     let lap = Instant::now();
-    let scene = importer::load(input)
+    let options = importer::Options {
+        allow_outside_paths: cli.allow_outside_paths,
+    };
+    let scene = importer::load_with(input, &options)
         .with_context(|| format!("{}", input.display()))
         .map_err(bad_input)?;
     let mut timings = BTreeMap::new();
     timings.insert("import".to_string(), lap.elapsed().as_secs_f64());
+    exporter::check_distinct(&planned, &scene.input_files).map_err(same_file)?;
+    // Warnings as they arise: a bake refused or killed later still showed them.
+    let warn = |lines: &[String]| {
+        if !cli.quiet {
+            for w in lines {
+                eprintln!("bake: warning: {w}");
+            }
+        }
+    };
+    warn(&scene.warnings);
 
     // 2.–4. Mesh, visibility, transport, solve: one bake, as every caller runs it.
     let mut request = cli.request();
@@ -90,6 +139,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     for (name, seconds) in &bake.timings {
         timings.insert(name.to_string(), *seconds);
     }
+    warn(&bake.warnings);
     let mut warnings = scene.warnings.clone();
     warnings.extend(bake.warnings.iter().cloned());
     let mesh = &bake.mesh;
@@ -119,10 +169,12 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             .with_context(|| format!("{}: cannot build the lightmap", input.display()))
             .map_err(internal)?;
         if built.stats.reductions > 0 {
-            warnings.push(format!(
+            let line = format!(
                 "lightmap texel size raised from {:.6} to {:.6} to fit a {} atlas",
                 built.requested_texel_size, built.texel_size, cli.lightmap_max
-            ));
+            );
+            warn(std::slice::from_ref(&line));
+            warnings.push(line);
         }
         stage("lightmap", &mut lap);
         Some(built)
@@ -148,35 +200,30 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         shading,
         exposure,
     };
+    // Every file of the set is staged (written to a temporary beside it) before any is
+    // renamed into place: the report first, then the lightmap, then OUT last.
+    exporter::remove_stale_temporaries(&planned);
+    let mut vertex_files = exporter::OutputSet::new();
     if cli.target != Target::Lightmap {
-        exporter::write_gltf(&cli.output, &vertex_bake)
+        exporter::stage_gltf(&mut vertex_files, &cli.output, &vertex_bake)
             .with_context(|| format!("cannot write {}", cli.output.display()))
             .map_err(internal)?;
     }
+    let mut lightmap_files = exporter::OutputSet::new();
     if let Some(built) = &lightmap {
-        let paths = match cli.target {
-            Target::Both => exporter::LightmapPaths::beside(&cli.output),
-            _ => exporter::LightmapPaths::alone(&cli.output),
-        }
-        .with_context(|| format!("cannot write {}", cli.output.display()))
-        .map_err(internal)?;
+        let paths = lightmap_paths(cli).map_err(internal)?;
         let lightmap_bake = exporter::LightmapBake {
             scene: &scene,
             lightmap: built,
             keep_lights: cli.keep_lights,
         };
-        exporter::write_lightmap_gltf(&paths, &lightmap_bake)
+        exporter::stage_lightmap_gltf(&mut lightmap_files, &paths, &lightmap_bake)
             .with_context(|| format!("cannot write {}", paths.gltf.display()))
             .map_err(internal)?;
     }
     stage("export", &mut lap);
 
-    if !cli.quiet {
-        for w in &warnings {
-            eprintln!("bake: warning: {w}");
-        }
-    }
-
+    let mut set = exporter::OutputSet::new();
     if let Some(path) = &cli.report {
         let info = SolverInfo {
             method: match bake.solve {
@@ -238,10 +285,15 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         report.warnings = warnings.clone();
         timings.insert("total".to_string(), started.elapsed().as_secs_f64());
         report.timings = timings;
-        report::write_report(path, &report)
+        report::stage_report(&mut set, path, &report)
             .with_context(|| format!("cannot write {}", path.display()))
             .map_err(internal)?;
     }
+    set.append(lightmap_files);
+    set.append(vertex_files);
+    set.commit()
+        .context("cannot write the outputs")
+        .map_err(internal)?;
 
     if !cli.quiet {
         let r = solution.residual;

@@ -355,6 +355,8 @@ fn usage_errors_exit_2() {
         (&["--ff-points", "4"][..], "--ff-points"),
         (&["--ff-tolerance", "0"][..], "--ff-tolerance"),
         (&["--ff-tolerance", "1.5"][..], "--ff-tolerance"),
+        (&["--bounces", "4000000000"][..], "--bounces"),
+        (&["--bounces", "10001"][..], "--bounces"),
         (
             &["--ff-estimator", "contour", "--ff-tolerance", "1e-3"][..],
             "applies only to --ff-estimator auto",
@@ -459,6 +461,35 @@ fn unsupported_output_extension() {
 
 // ---- warnings and --quiet ----
 
+/// The importer's warnings are printed as soon as the scene is read: a bake refused later
+/// (here by its element count) still shows them, before its error line.
+#[test]
+fn import_warnings_show_even_when_the_bake_is_refused_later() {
+    let dir = dir();
+    let input = dir.path().join("cube-sliver.gltf");
+    common::write_json(&input, &cube_with_sliver_json());
+    let line = assert_rejected(
+        &input,
+        &["--max-element-size", "1e-300"],
+        BAD_INPUT,
+        &["elements"],
+    );
+    let out = dir.path().join("o.glb");
+    let run = bake([
+        "--max-element-size".as_ref(),
+        "1e-300".as_ref(),
+        input.as_os_str(),
+        out.as_os_str(),
+    ]);
+    let warnings = run.warning_lines();
+    assert_eq!(warnings.len(), 1, "{run:#?}");
+    assert!(warnings[0].contains("degenerate"), "{warnings:?}");
+    let warning_at = run.stderr.find("bake: warning:");
+    let error_at = run.stderr.find("bake: error:");
+    assert!(warning_at < error_at, "{run:#?}");
+    assert!(run.stderr.contains(&line), "{run:#?}");
+}
+
 /// Bakes `input` at --subdiv 4 into `dir`; returns the run and the report path.
 fn bake_cube_like(dir: &Path, input: &Path, tag: &str, quiet: bool) -> (Run, PathBuf) {
     let report = dir.join(format!("{tag}.json"));
@@ -530,4 +561,160 @@ fn quiet_prints_nothing_on_success() {
     assert_eq!(quiet.success().stderr, "");
     // ... though the report still records them.
     assert_eq!(report_without_timings(&report).warnings.len(), 1);
+}
+
+// ---- input files: regular, capped, inside the scene's folder ----
+
+/// Runs `bake` and kills it after 20 s: a refusal must come at once (a FIFO must not block).
+fn bake_within_20_s(args: &[&std::ffi::OsStr]) -> Run {
+    use std::io::Read;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_bake"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("start bake");
+    let started = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("poll bake") {
+            break status;
+        }
+        if started.elapsed() > std::time::Duration::from_secs(20) {
+            let _ = child.kill();
+            panic!("bake {args:?} ran past 20 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let mut stdout = String::new();
+    let mut stderr = String::new();
+    if let Some(mut out) = child.stdout.take() {
+        let _ = out.read_to_string(&mut stdout);
+    }
+    if let Some(mut err) = child.stderr.take() {
+        let _ = err.read_to_string(&mut stderr);
+    }
+    Run {
+        code: status.code(),
+        stdout,
+        stderr,
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn a_fifo_a_directory_and_dev_zero_are_refused_at_once() {
+    let dir = dir();
+    let fifo = dir.path().join("fifo.gltf");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .expect("run mkfifo");
+    assert!(made.success());
+    let zero = dir.path().join("zero.glb");
+    std::os::unix::fs::symlink("/dev/zero", &zero).expect("symlink");
+    let folder = dir.path().join("folder.obj");
+    std::fs::create_dir(&folder).expect("mkdir");
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).expect("mkdir");
+    for (input, says) in [
+        (&fifo, "not a regular file"),
+        (&zero, "not a regular file"),
+        (&folder, "a directory"),
+    ] {
+        let output = out.join("o.gltf");
+        let run = bake_within_20_s(&[input.as_os_str(), output.as_os_str()]);
+        let line = single_error_line(&run, BAD_INPUT);
+        assert!(line.contains(says), "{line}");
+        assert_eq!(file_names(&out), Vec::<String>::new());
+    }
+}
+
+#[test]
+fn inputs_outside_the_folder_are_refused_unless_allowed() {
+    let dir = dir();
+    let scenes = dir.path().join("scenes");
+    std::fs::create_dir_all(scenes.join("sub")).expect("mkdir");
+    let outside = dir.path().join("outside.bin");
+    std::fs::write(&outside, common::position_bytes(&TRIANGLE)).expect("write");
+    let builder = GltfBuilder::triangles(&TRIANGLE);
+    let absolute = outside.display().to_string();
+    let file_uri = format!("file://{absolute}");
+    for (name, uri) in [
+        ("up.gltf", "../outside.bin"),
+        ("up2.gltf", "sub/../../outside.bin"),
+        ("absolute.gltf", absolute.as_str()),
+        ("file-uri.gltf", file_uri.as_str()),
+    ] {
+        let input = scenes.join(name);
+        common::write_json(&input, &builder.json_with_buffer_uri(uri));
+        let line = assert_rejected(&input, &[], BAD_INPUT, &["--allow-outside-paths"]);
+        assert!(line.contains("buffer 0"), "{line}");
+        // Given the flag, the same file bakes.
+        let out = dir.path().join(format!("{name}.glb"));
+        bake([
+            "--allow-outside-paths".as_ref(),
+            "--subdiv".as_ref(),
+            "1".as_ref(),
+            "--quiet".as_ref(),
+            input.as_os_str(),
+            out.as_os_str(),
+        ])
+        .success();
+    }
+    // An mtllib outside the folder: an error, not a missing library's warning.
+    let obj = scenes.join("m.obj");
+    write_text(
+        &obj,
+        "mtllib ../paint.mtl\nusemtl paint\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    );
+    write_text(
+        &dir.path().join("paint.mtl"),
+        "newmtl paint\nKd 0.5 0.5 0.5\n",
+    );
+    assert_rejected(&obj, &[], BAD_INPUT, &["mtllib", "--allow-outside-paths"]);
+}
+
+// ---- the cost is estimated before the work ----
+
+#[test]
+fn element_counts_too_large_for_the_mesher_or_memory_are_refused_before_meshing() {
+    // 1e-4 on the unit cube: 6 × 10^8 elements (a 48 GB reservation used to abort); 1e-300
+    // overflowed the count past the check.
+    for size in ["1e-4", "1e-300"] {
+        let started = std::time::Instant::now();
+        let line = assert_rejected(
+            &fixture("cube.gltf"),
+            &["--max-element-size", size],
+            BAD_INPUT,
+            &["elements"],
+        );
+        // 1e-4: 6 × 10^8 elements fit the mesher's 2^30 but not the memory (the message
+        // gives the estimate and MemAvailable); 1e-300: over the mesher's limit.
+        let says = match size {
+            "1e-4" if Path::new("/proc/meminfo").exists() => "of memory is available",
+            "1e-4" => "elements",
+            _ => "at least 10^600 elements, more than the mesher's limit",
+        };
+        assert!(line.contains(says), "{size}: {line}");
+        assert!(
+            started.elapsed().as_secs() < 10,
+            "{size}: took {:?}",
+            started.elapsed()
+        );
+    }
+}
+
+#[test]
+fn an_obj_with_too_many_faces_is_refused_before_parsing() {
+    let dir = dir();
+    let obj = dir.path().join("many.obj");
+    // One face more than the importer's limit of 2^22 (33 MB of text).
+    let mut text = String::with_capacity(8 * ((1 << 22) + 2) + 32);
+    text.push_str("v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+    for _ in 0..(1u32 << 22) + 1 {
+        text.push_str("f 1 2 3\n");
+    }
+    write_text(&obj, &text);
+    drop(text);
+    assert_rejected(&obj, &[], BAD_INPUT, &["too large", "4194304 faces"]);
 }

@@ -815,3 +815,49 @@ fn a_texture_on_the_second_uv_set_moves_to_texcoord_2_in_the_lightmap_bake() {
     assert_eq!(textured_material(&document).1, 0);
     common::validate_clean(&[out, side]);
 }
+
+/// An image file is read like a buffer: inside the scene's folder (else refused unless
+/// `--allow-outside-paths`), and it is one of the inputs no output may overwrite.
+#[test]
+fn an_external_texture_is_read_inside_the_folder_only_and_never_overwritten() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let scenes = dir.path().join("scenes");
+    std::fs::create_dir(&scenes).expect("mkdir");
+    let texture = png(4, 4, |_, _| [128; 3]);
+    std::fs::write(scenes.join("t.png"), &texture).expect("write");
+    std::fs::write(dir.path().join("up.png"), &texture).expect("write");
+    let mut doc = floor_scene([0.5; 3], Some((texture.clone(), false)));
+    doc["images"][0]["uri"] = json!("t.png");
+    let input = scenes.join("floor.gltf");
+    write_json(&input, &doc);
+    let out = scenes.join("o.gltf");
+    bake(["--quiet".as_ref(), input.as_os_str(), out.as_os_str()]).success();
+
+    let report = scenes.join("t.png");
+    let run = bake([
+        input.as_os_str(),
+        out.as_os_str(),
+        "--report".as_ref(),
+        report.as_os_str(),
+    ]);
+    assert_eq!(run.code, Some(2), "{run:?}");
+    assert!(run.stderr.contains("same file"), "{}", run.stderr);
+    assert_eq!(std::fs::read(&report).expect("read"), texture);
+
+    doc["images"][0]["uri"] = json!("../up.png");
+    write_json(&input, &doc);
+    let run = bake([input.as_os_str(), out.as_os_str()]);
+    assert_eq!(run.code, Some(1), "{run:?}");
+    assert!(
+        run.stderr.contains("../up.png") && run.stderr.contains("--allow-outside-paths"),
+        "{}",
+        run.stderr
+    );
+    bake([
+        "--allow-outside-paths".as_ref(),
+        "--quiet".as_ref(),
+        input.as_os_str(),
+        out.as_os_str(),
+    ])
+    .success();
+}

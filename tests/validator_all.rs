@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{bake, tools_dir, validator_available};
+use common::{bake, skip, tools_dir, validator_available};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -85,13 +85,10 @@ fn message_code(line: &str) -> Option<(&str, &str)> {
 #[test]
 fn every_output_mode_of_every_fixture_is_validator_clean() {
     if !validator_available() {
-        let required = std::env::var("BAKE_REQUIRE_VALIDATOR").is_ok_and(|v| v == "1");
-        assert!(
-            !required,
-            "BAKE_REQUIRE_VALIDATOR=1 but the validator is not installed \
-             (run tools/install-validator)"
+        skip(
+            "BAKE_REQUIRE_VALIDATOR",
+            "the validator is not installed (run tools/install-validator)",
         );
-        println!("skipped: validator not installed (run tools/install-validator)");
         return;
     }
     let scenes = fixtures();

@@ -12,7 +12,7 @@
 
 mod common;
 
-use common::{bake, bake_in, blender_installed, fixture, Run, CUBE_WALLS};
+use common::{bake, bake_in, blender_installed, fixture, skip, Run, CUBE_WALLS};
 use exporter::report::{read_report, Report};
 use preview::image::RgbImage;
 use preview::{srgb8, Camera};
@@ -312,10 +312,6 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn required(variable: &str) -> bool {
-    std::env::var(variable).is_ok_and(|v| v == "1")
-}
-
 /// Prints a command's output and asserts it succeeded.
 fn show(what: &str, output: &std::process::Output, started: Instant) -> String {
     let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
@@ -330,12 +326,10 @@ fn show(what: &str, output: &std::process::Output, started: Instant) -> String {
 fn pyrender_renders_the_reported_colours() {
     let python = root().join("tests/python/.venv/bin/python");
     if !python.is_file() {
-        assert!(
-            !required("BAKE_REQUIRE_CLIENTS"),
-            "BAKE_REQUIRE_CLIENTS=1 but {} is missing (run tools/ci-clients)",
-            python.display()
+        skip(
+            "BAKE_REQUIRE_CLIENTS",
+            &format!("{} is missing (run tools/ci-clients)", python.display()),
         );
-        println!("skipped: no Python environment (run tools/ci-clients)");
         return;
     }
     let started = Instant::now();
@@ -353,11 +347,10 @@ fn pyrender_renders_the_reported_colours() {
 #[test]
 fn blender_imports_the_baked_colours_and_renders_what_preview_renders() {
     if !blender_installed() {
-        assert!(
-            !required("BAKE_REQUIRE_BLENDER"),
-            "BAKE_REQUIRE_BLENDER=1 but blender is not installed (run tools/ci-clients --blender)"
+        skip(
+            "BAKE_REQUIRE_BLENDER",
+            "blender is not installed (tools/ci-clients --blender installs it)",
         );
-        println!("skipped: blender not installed (tools/ci-clients --blender installs it)");
         return;
     }
     let dir = tempfile::tempdir().expect("a temporary directory");

@@ -323,6 +323,30 @@ pub fn validator_available() -> bool {
     installed && node_runs
 }
 
+/// Whether the test that needs what `variable` names must run: `variable=1`, or
+/// `BAKE_REQUIRE_ALL=1` (as `.ci/run` sets).
+pub fn required(variable: &str) -> bool {
+    let set = |name: &str| std::env::var(name).is_ok_and(|v| v == "1");
+    set(variable) || set("BAKE_REQUIRE_ALL")
+}
+
+/// A test that cannot run here because `why` (e.g. "the validator is not installed"): fails
+/// when [`required`]`(variable)`, else says `skipped: …` on stderr. Written straight to the
+/// process's stderr, past libtest's capture of `print!`/`eprint!`, so `cargo test` shows
+/// it even when the test passes.
+pub fn skip(variable: &str, why: &str) {
+    assert!(
+        !required(variable),
+        "{variable}=1 (or BAKE_REQUIRE_ALL=1) but {why}"
+    );
+    use std::io::Write;
+    let _ = writeln!(
+        std::io::stderr(),
+        "skipped: {} ({why}; {variable}=1 makes it fail)",
+        std::thread::current().name().unwrap_or("a test")
+    );
+}
+
 /// Whether `blender` runs.
 pub fn blender_installed() -> bool {
     Command::new("blender")

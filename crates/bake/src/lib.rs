@@ -131,6 +131,11 @@ impl Bake {
     }
 }
 
+/// The most interreflections `--bounces` may ask for: each is one product with the
+/// transport (a series that has not converged after 10 000 bounces is better solved
+/// exactly).
+pub const MAX_BOUNCES: u32 = 10_000;
+
 /// Scenes up to this many elements get the dense transport under `--transport auto`.
 pub const DENSE_CROSSOVER: usize = 2_000;
 
@@ -144,6 +149,12 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     };
     let mut warnings = Vec::new();
 
+    // The cost first, from the element count alone: a request too large for this machine is
+    // refused before anything is allocated.
+    let planned = mesher::element_count(&scene.polygons, settings.subdivision)?;
+    let transport = choose_transport(settings, usize::try_from(planned).unwrap_or(usize::MAX));
+    let solve = settings.solve(transport.kind);
+    check_memory(planned, transport.kind, solve, scene_bands(scene))?;
     let mesh = mesher::mesh(&scene.polygons, settings.subdivision)?;
     let n = mesh.elements.len();
     let (rho, emission) = element_values(scene, &mesh);
@@ -152,8 +163,6 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     }
     stage("mesh", &mut lap);
 
-    let transport = choose_transport(settings, n);
-    let solve = settings.solve(transport.kind);
     let occluders = Occluders::new(&scene.polygons)?;
     stage("visibility_setup", &mut lap);
 
@@ -255,8 +264,11 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
         }
         _ => {
             // Dense: every element pair, exact (or within the estimator's tolerance).
-            check_dense_memory(n, &rho, solve)?;
-            let occludable = occluders.occludable_pairs();
+            check_memory(n as u64, TransportKind::Dense, solve, distinct_bands(&rho))?;
+            // The occlusion pre-pass (polygon pairs × candidate occluders) can take seconds.
+            progress.start("occlusion", occluders.len() as u64);
+            let occludable = occluders.occludable_pairs_with_progress(&|k| progress.advance(k));
+            progress.finish();
             let effects = occludable.effects();
             stage("occludable_pairs", &mut lap);
             let mut form_factors =
@@ -404,26 +416,88 @@ fn choose_transport(settings: &Settings, n: usize) -> TransportChoice {
     }
 }
 
-/// Refuses a dense bake whose matrices would not fit in the memory available now.
-fn check_dense_memory(n: usize, rho: &[[f64; BANDS]], solve: Solve) -> Result<(), BakeError> {
-    // F itself, plus one n × n LU copy per distinct reflectance band for the direct solver.
-    let copies = match solve {
-        Solve::Direct => 1 + distinct_bands(rho),
-        _ => 1,
-    } as u128;
-    let bytes = (n as u128) * (n as u128) * 8 * copies;
-    if let Some(available) = available_memory() {
-        if bytes > available as u128 {
-            return Err(BakeError::TooLarge(format!(
-                "{n} elements need {:.1} GiB for the dense transport ({copies} n×n matrices), \
-                 but only {:.1} GiB of memory is available; use --transport hierarchical, a \
-                 larger --max-element-size or a smaller --subdiv",
-                bytes as f64 / GIB,
-                available as f64 / GIB
-            )));
+/// Bytes every element costs whatever the transport: the element (80 B) and its grid
+/// vertices, ρ, e, the lights' share, the source term, b and H (24 B each), and the
+/// exporter's vertex attributes. A lower bound, rounded up.
+pub const BYTES_PER_ELEMENT: u64 = 512;
+
+/// The memory a bake of `n` elements needs at least: [`BYTES_PER_ELEMENT`] each, plus for the
+/// dense transport the n × n matrix F (8 B per entry) and, for the direct solver, one n × n
+/// LU copy per distinct reflectance band (`bands`): `8 n² (1 + bands)` bytes, 16–32 B × n².
+/// The hierarchical transport's links are guarded as they are made.
+pub fn memory_estimate(n: u64, transport: TransportKind, solve: Solve, bands: usize) -> u128 {
+    let n = u128::from(n);
+    let per_element = n * u128::from(BYTES_PER_ELEMENT);
+    match transport {
+        TransportKind::Hierarchical => per_element,
+        _ => {
+            let copies = match solve {
+                Solve::Direct => 1 + bands as u128,
+                _ => 1,
+            };
+            per_element + n * n * 8 * copies
         }
     }
-    Ok(())
+}
+
+/// Refuses a bake whose [`memory_estimate`] exceeds the memory available now (`MemAvailable`),
+/// saying both.
+fn check_memory(
+    n: u64,
+    transport: TransportKind,
+    solve: Solve,
+    bands: usize,
+) -> Result<(), BakeError> {
+    let bytes = memory_estimate(n, transport, solve, bands);
+    let Some(available) = available_memory() else {
+        return Ok(());
+    };
+    if bytes <= u128::from(available) {
+        return Ok(());
+    }
+    let what = match transport {
+        TransportKind::Hierarchical => format!("{BYTES_PER_ELEMENT} B per element"),
+        _ => match solve {
+            Solve::Direct => format!(
+                "the dense transport: F and {bands} LU cop{} of n×n f64",
+                if bands == 1 { "y" } else { "ies" }
+            ),
+            _ => "the dense transport: the n×n f64 matrix F".into(),
+        },
+    };
+    Err(BakeError::TooLarge(format!(
+        "{n} elements need about {:.1} GiB ({what}), but only {:.1} GiB of memory is \
+         available; use a larger --max-element-size or a smaller --subdiv{}",
+        bytes as f64 / GIB,
+        available as f64 / GIB,
+        if transport == TransportKind::Hierarchical {
+            ""
+        } else {
+            ", or --transport hierarchical"
+        }
+    )))
+}
+
+/// Distinct ρ bands of the materials the polygons use (3 when one is textured: its elements'
+/// ρ is only known after meshing).
+fn scene_bands(scene: &Scene) -> usize {
+    let mut used = vec![false; scene.materials.len()];
+    for p in &scene.polygons {
+        if let Some(u) = used.get_mut(p.material) {
+            *u = true;
+        }
+    }
+    let materials: Vec<&importer::Material> = scene
+        .materials
+        .iter()
+        .zip(&used)
+        .filter_map(|(m, &u)| u.then_some(m))
+        .collect();
+    if materials.iter().any(|m| m.base_color_texture.is_some()) {
+        return BANDS;
+    }
+    let rho: Vec<[f64; BANDS]> = materials.iter().map(|m| m.rho).collect();
+    distinct_bands(&rho)
 }
 
 const GIB: f64 = (1u64 << 30) as f64;

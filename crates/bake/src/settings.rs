@@ -165,6 +165,12 @@ impl Settings {
                     .into(),
             ));
         }
+        if let Some(k) = request.bounces.filter(|&k| k > crate::MAX_BOUNCES) {
+            return Err(BakeError::Options(format!(
+                "--bounces must be at most {}, got {k}",
+                crate::MAX_BOUNCES
+            )));
+        }
         if let Some(k) = request.light_samples {
             if !(1..=1024).contains(&k) {
                 return Err(BakeError::Options(format!(

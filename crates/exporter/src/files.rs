@@ -57,34 +57,81 @@ pub(crate) fn uri_for_file_name(path: &Path) -> String {
     uri
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same directory.
-pub(crate) fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
-    let temporary = write_temporary(path, bytes)?;
-    rename_into_place(&temporary, path)
+/// The files of one bake, written as one transaction: [`OutputSet::stage`] writes each file
+/// to a temporary beside its target (synced to disk), [`OutputSet::commit`] renames them all
+/// into place in staging order. Until the first rename nothing the user named has changed;
+/// dropping an uncommitted set (any error, or a panic unwinding) removes every temporary.
+///
+/// Temporaries are named `.<name>.tmp-<pid>-<n>` (see [`remove_stale_temporaries`]).
+#[derive(Debug, Default)]
+pub struct OutputSet {
+    /// (temporary, target), in the order they are renamed.
+    staged: Vec<(PathBuf, PathBuf)>,
 }
 
-/// Writes two files that belong together (the `.bin` and its `.gltf`): both temporaries
-/// first, then `first` is renamed into place before `second`, so `second` never refers to
-/// data that is not there yet.
-pub(crate) fn write_pair_atomically(
-    first: &Path,
-    first_bytes: &[u8],
-    second: &Path,
-    second_bytes: &[u8],
-) -> Result<(), ExportError> {
-    let first_temporary = write_temporary(first, first_bytes)?;
-    let second_temporary = match write_temporary(second, second_bytes) {
-        Ok(temporary) => temporary,
-        Err(error) => {
-            remove_quietly(&first_temporary);
-            return Err(error);
-        }
-    };
-    if let Err(error) = rename_into_place(&first_temporary, first) {
-        remove_quietly(&second_temporary);
-        return Err(error);
+impl OutputSet {
+    pub fn new() -> OutputSet {
+        OutputSet::default()
     }
-    rename_into_place(&second_temporary, second)
+
+    /// Writes `bytes` to a temporary for `path`; renamed by [`OutputSet::commit`] after every
+    /// file staged before it.
+    pub(crate) fn stage(&mut self, path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
+        let temporary = write_temporary(path, bytes)?;
+        self.staged.push((temporary, path.to_path_buf()));
+        Ok(())
+    }
+
+    /// Moves `other`'s staged files to the end of this set (renamed after this set's).
+    pub fn append(&mut self, mut other: OutputSet) {
+        self.staged.append(&mut other.staged);
+    }
+
+    /// The targets staged so far, in rename order.
+    pub fn targets(&self) -> Vec<PathBuf> {
+        self.staged.iter().map(|(_, t)| t.clone()).collect()
+    }
+
+    /// Renames every temporary into place, in staging order, and returns the targets. Checks
+    /// first that no target is a directory (a rename onto one would fail half-way through the
+    /// set). The renames themselves are the one window in which a crash (kill -9, power loss)
+    /// can leave a set that mixes new and previous files.
+    pub fn commit(mut self) -> Result<Vec<PathBuf>, ExportError> {
+        for (_, target) in &self.staged {
+            check_target(target)?;
+        }
+        let staged = std::mem::take(&mut self.staged);
+        let mut renamed = Vec::with_capacity(staged.len());
+        let mut rest = staged.into_iter();
+        for (temporary, target) in rest.by_ref() {
+            if let Err(error) = rename_into_place(&temporary, &target) {
+                rest.for_each(|(t, _)| remove_quietly(&t));
+                return Err(error);
+            }
+            renamed.push(target);
+        }
+        Ok(renamed)
+    }
+}
+
+impl Drop for OutputSet {
+    fn drop(&mut self) {
+        for (temporary, _) in &self.staged {
+            remove_quietly(temporary);
+        }
+    }
+}
+
+/// A target may be a file (replaced) or not exist yet; a directory (or anything else that
+/// is not a file or a link) cannot be replaced by a rename.
+pub fn check_target(path: &Path) -> Result<(), ExportError> {
+    match fs::symlink_metadata(path) {
+        Ok(meta) if !(meta.is_file() || meta.file_type().is_symlink()) => Err(ExportError::Io {
+            path: path.to_path_buf(),
+            source: std::io::Error::other("it exists and is not a regular file"),
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// `.<name>.tmp-<pid>-<n>` beside `path`; `n` keeps threads of one process apart.
@@ -97,6 +144,70 @@ fn temporary_path_for(path: &Path) -> PathBuf {
         .unwrap_or_default();
     let temporary_name = format!(".{name}.tmp-{}-{n}", std::process::id());
     path.with_file_name(temporary_name)
+}
+
+/// The process id in a temporary's name `.<name>.tmp-<pid>-<n>` of target `name`.
+fn temporary_pid(file_name: &str, name: &str) -> Option<u32> {
+    let rest = file_name
+        .strip_prefix('.')?
+        .strip_prefix(name)?
+        .strip_prefix(".tmp-")?;
+    let (pid, n) = rest.split_once('-')?;
+    if n.is_empty() || !n.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    pid.parse().ok()
+}
+
+/// Whether process `pid` is alive (Linux: `/proc/<pid>` exists). `None` where that cannot
+/// be told (no `/proc`): such temporaries are kept.
+fn process_alive(pid: u32) -> Option<bool> {
+    let proc = Path::new("/proc");
+    if !proc.join("self").exists() {
+        return None;
+    }
+    Some(proc.join(pid.to_string()).exists())
+}
+
+/// Removes the temporaries a killed bake left beside `targets`: files named
+/// `.<name>.tmp-<pid>-<n>`, `<name>` one of the targets' file names, whose process `<pid>`
+/// is no longer running (another bake's live temporaries are kept). Returns how many were
+/// removed. Only on systems with `/proc` (elsewhere nothing is removed).
+pub fn remove_stale_temporaries(targets: &[PathBuf]) -> usize {
+    let own = std::process::id();
+    let mut removed = 0;
+    let mut dirs: Vec<(PathBuf, Vec<String>)> = Vec::new();
+    for target in targets {
+        let Some(name) = target.file_name().and_then(|n| n.to_str()) else {
+            continue;
+        };
+        let dir = match target.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        match dirs.iter_mut().find(|(d, _)| *d == dir) {
+            Some((_, names)) => names.push(name.to_owned()),
+            None => dirs.push((dir, vec![name.to_owned()])),
+        }
+    }
+    for (dir, names) in dirs {
+        let Ok(entries) = fs::read_dir(&dir) else {
+            continue;
+        };
+        for entry in entries.flatten() {
+            let file_name = entry.file_name();
+            let Some(file_name) = file_name.to_str() else {
+                continue;
+            };
+            let pid = names.iter().find_map(|n| temporary_pid(file_name, n));
+            let stale = pid.is_some_and(|p| p != own && process_alive(p) == Some(false));
+            let is_file = entry.file_type().is_ok_and(|t| t.is_file());
+            if stale && is_file && fs::remove_file(entry.path()).is_ok() {
+                removed += 1;
+            }
+        }
+    }
+    removed
 }
 
 /// Writes the temporary for `path` and returns its path; removes it again on error.
@@ -149,6 +260,66 @@ mod tests {
         );
         assert!(OutputFormat::from_path(Path::new("b.obj")).is_err());
         assert!(OutputFormat::from_path(Path::new("gltf")).is_err());
+    }
+
+    #[test]
+    fn temporary_names_parse_back_to_their_pid() {
+        assert_eq!(temporary_pid(".o.gltf.tmp-123-4", "o.gltf"), Some(123));
+        assert_eq!(temporary_pid(".o.gltf.tmp-123-", "o.gltf"), None);
+        assert_eq!(temporary_pid(".o.gltf.tmp-x-1", "o.gltf"), None);
+        assert_eq!(temporary_pid(".o.bin.tmp-123-4", "o.gltf"), None);
+        assert_eq!(temporary_pid("o.gltf.tmp-123-4", "o.gltf"), None);
+    }
+
+    #[test]
+    fn stale_temporaries_of_dead_processes_are_removed_live_ones_kept() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let target = dir.path().join("o.gltf");
+        // No process has an id above pid_max (at most 2^22 on Linux); our own is alive.
+        let dead = dir.path().join(".o.gltf.tmp-4294967294-0");
+        let live = dir
+            .path()
+            .join(format!(".o.gltf.tmp-{}-7", std::process::id()));
+        let other = dir.path().join(".x.gltf.tmp-4294967294-0");
+        for path in [&dead, &live, &other] {
+            fs::write(path, b"partial").expect("write");
+        }
+        let removed = remove_stale_temporaries(std::slice::from_ref(&target));
+        if Path::new("/proc/self").exists() {
+            assert_eq!(removed, 1);
+            assert!(!dead.exists());
+        }
+        assert!(live.exists() && other.exists());
+    }
+
+    #[test]
+    fn a_dropped_set_leaves_no_temporary_and_no_target() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let a = dir.path().join("a.bin");
+        let b = dir.path().join("b.gltf");
+        let mut set = OutputSet::new();
+        set.stage(&a, b"1").expect("stage");
+        set.stage(&b, b"2").expect("stage");
+        drop(set);
+        assert_eq!(fs::read_dir(dir.path()).expect("list").count(), 0);
+    }
+
+    #[test]
+    fn a_directory_target_fails_the_commit_before_any_rename() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let a = dir.path().join("a.bin");
+        let b = dir.path().join("b.json");
+        fs::create_dir(&b).expect("mkdir");
+        let mut set = OutputSet::new();
+        set.stage(&a, b"1").expect("stage");
+        set.stage(&b, b"2").expect("stage");
+        assert!(set.commit().is_err());
+        let names: Vec<_> = fs::read_dir(dir.path())
+            .expect("list")
+            .flatten()
+            .map(|e| e.file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("b.json")]);
     }
 
     #[test]

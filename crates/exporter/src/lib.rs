@@ -21,10 +21,14 @@ mod files;
 mod geometry;
 mod lightmap_gltf;
 pub mod report;
+mod same_file;
+
+pub use files::{check_target, remove_stale_temporaries, OutputSet};
+pub use same_file::{check_distinct, SameFile};
 
 pub use lightmap_gltf::{
-    write_lightmap_gltf, LightmapBake, LightmapPaths, LightmapWritten, LIGHTMAP_EXTENSION,
-    LIGHTMAP_EXTRAS_KEY, LIGHTMAP_UNITS,
+    stage_lightmap_gltf, write_lightmap_gltf, LightmapBake, LightmapPaths, LightmapWritten,
+    LIGHTMAP_EXTENSION, LIGHTMAP_EXTRAS_KEY, LIGHTMAP_UNITS,
 };
 
 use std::path::{Path, PathBuf};
@@ -100,6 +104,10 @@ pub enum ExportError {
         #[source]
         source: std::io::Error,
     },
+    /// Two of the paths a bake would read or write are one file (`bake` refuses before
+    /// writing anything).
+    #[error(transparent)]
+    SameFile(#[from] SameFile),
     #[error("unsupported output extension for {0} (expected .gltf or .glb)")]
     UnsupportedExtension(PathBuf),
     /// The scene, element mesh and radiosity do not fit together (a bug upstream).
@@ -122,6 +130,14 @@ pub enum ExportError {
 /// it will be stored (f32), is checked before anything is written: a NaN or infinity is an
 /// [`ExportError::NonFinite`] naming the element and its polygon's origin.
 pub fn write_gltf(path: &Path, bake: &Bake) -> Result<(), ExportError> {
+    let mut set = OutputSet::new();
+    stage_gltf(&mut set, path, bake)?;
+    set.commit().map(drop)
+}
+
+/// [`write_gltf`] as part of a larger set: the files are staged in `set` (the `.bin` before
+/// the `.gltf` that names it) and appear only when the set is committed.
+pub fn stage_gltf(set: &mut OutputSet, path: &Path, bake: &Bake) -> Result<(), ExportError> {
     let format = files::OutputFormat::from_path(path)?;
     let primitives = geometry::build(bake)?;
     match format {
@@ -130,18 +146,26 @@ pub fn write_gltf(path: &Path, bake: &Bake) -> Result<(), ExportError> {
             let bin_uri = files::uri_for_file_name(&bin_path);
             let (root, bin) = document::build(bake.scene, &primitives, Some(bin_uri))?;
             let json = encode_json(&root)?;
-            if bin.is_empty() {
-                files::write_atomically(path, &json)
-            } else {
-                files::write_pair_atomically(&bin_path, &bin, path, &json)
+            if !bin.is_empty() {
+                set.stage(&bin_path, &bin)?;
             }
+            set.stage(path, &json)
         }
         files::OutputFormat::Glb => {
             let (root, bin) = document::build(bake.scene, &primitives, None)?;
             let glb = encode_glb(&root, &bin)?;
-            files::write_atomically(path, &glb)
+            set.stage(path, &glb)
         }
     }
+}
+
+/// Every file [`write_gltf`] may write for `path`: `<stem>.bin` and the `.gltf`, or the
+/// `.glb`.
+pub fn gltf_files(path: &Path) -> Result<Vec<PathBuf>, ExportError> {
+    Ok(match files::OutputFormat::from_path(path)? {
+        files::OutputFormat::Gltf => vec![files::bin_path_for(path)?, path.to_path_buf()],
+        files::OutputFormat::Glb => vec![path.to_path_buf()],
+    })
 }
 
 fn encode_json(root: &gltf::json::Root) -> Result<Vec<u8>, ExportError> {

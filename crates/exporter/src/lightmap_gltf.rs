@@ -10,7 +10,7 @@
 
 use crate::assets::{embed, reads_set, remap_sets, Assets, TEXTURE_TRANSFORM_EXTENSION};
 use crate::document::{check_layout, DocumentWriter};
-use crate::files::{self, OutputFormat};
+use crate::files::{self, OutputFormat, OutputSet};
 use crate::{encode_glb, encode_json, ExportError};
 use glam::{DMat3, DMat4, DVec3};
 use gltf::json;
@@ -70,6 +70,22 @@ impl LightmapPaths {
     }
 }
 
+impl LightmapPaths {
+    /// Every file [`write_lightmap_gltf`] may write: the EXR, and the PNG, `.bin` and
+    /// `.gltf`, or the `.glb`.
+    pub fn files(&self) -> Result<Vec<PathBuf>, ExportError> {
+        Ok(match OutputFormat::from_path(&self.gltf)? {
+            OutputFormat::Gltf => vec![
+                self.exr.clone(),
+                self.png.clone(),
+                files::bin_path_for(&self.gltf)?,
+                self.gltf.clone(),
+            ],
+            OutputFormat::Glb => vec![self.exr.clone(), self.gltf.clone()],
+        })
+    }
+}
+
 /// `<dir>/<stem>.<suffix>` for `<dir>/<stem>.<ext>`.
 fn sibling(path: &Path, suffix: &str) -> Result<PathBuf, ExportError> {
     let stem = path
@@ -101,8 +117,22 @@ pub struct LightmapWritten {
     pub files: Vec<PathBuf>,
 }
 
-/// Writes the lightmap bake to `paths`.
+/// Writes the lightmap bake to `paths`: every file to a temporary first, then renamed into
+/// place (the glTF last, so it never names a file that is not there yet).
 pub fn write_lightmap_gltf(
+    paths: &LightmapPaths,
+    bake: &LightmapBake,
+) -> Result<LightmapWritten, ExportError> {
+    let mut set = OutputSet::new();
+    let staged = stage_lightmap_gltf(&mut set, paths, bake)?;
+    let files = set.commit()?;
+    Ok(LightmapWritten { files, ..staged })
+}
+
+/// [`write_lightmap_gltf`] as part of a larger set: the EXR, PNG and `.bin` are staged
+/// before the glTF; `files` lists them in that order (they appear when `set` is committed).
+pub fn stage_lightmap_gltf(
+    set: &mut OutputSet,
     paths: &LightmapPaths,
     bake: &LightmapBake,
 ) -> Result<LightmapWritten, ExportError> {
@@ -221,17 +251,20 @@ pub fn write_lightmap_gltf(
             let bin_path = files::bin_path_for(&paths.gltf)?;
             let (root, bin) = writer.finish(Some(files::uri_for_file_name(&bin_path)));
             let json = encode_json(&root)?;
-            write_all_atomically(&[
-                (exr_path, &exr),
-                (paths.png.as_path(), &png.bytes),
-                (bin_path.as_path(), &bin),
-                (paths.gltf.as_path(), &json),
-            ])?
+            stage_all(
+                set,
+                &[
+                    (exr_path, &exr),
+                    (paths.png.as_path(), &png.bytes),
+                    (bin_path.as_path(), &bin),
+                    (paths.gltf.as_path(), &json),
+                ],
+            )?
         }
         OutputFormat::Glb => {
             let (root, bin) = writer.finish(None);
             let glb = encode_glb(&root, &bin)?;
-            write_all_atomically(&[(exr_path, &exr), (paths.gltf.as_path(), &glb)])?
+            stage_all(set, &[(exr_path, &exr), (paths.gltf.as_path(), &glb)])?
         }
     };
     Ok(LightmapWritten {
@@ -659,26 +692,13 @@ impl NodeSpace {
     }
 }
 
-/// Writes every file to a temporary first, then renames them into place in order (the glTF
-/// last, so it never names a file that is not there yet). On error nothing new is left.
-fn write_all_atomically(files_to_write: &[(&Path, &[u8])]) -> Result<Vec<PathBuf>, ExportError> {
-    let mut temporaries = Vec::with_capacity(files_to_write.len());
+/// Stages every file in order; returns their targets.
+fn stage_all(
+    set: &mut OutputSet,
+    files_to_write: &[(&Path, &[u8])],
+) -> Result<Vec<PathBuf>, ExportError> {
     for (path, bytes) in files_to_write {
-        match files::write_temporary(path, bytes) {
-            Ok(temporary) => temporaries.push(temporary),
-            Err(error) => {
-                temporaries.iter().for_each(|t| files::remove_quietly(t));
-                return Err(error);
-            }
-        }
-    }
-    for (k, ((path, _), temporary)) in files_to_write.iter().zip(&temporaries).enumerate() {
-        if let Err(error) = files::rename_into_place(temporary, path) {
-            temporaries[k + 1..]
-                .iter()
-                .for_each(|t| files::remove_quietly(t));
-            return Err(error);
-        }
+        set.stage(path, bytes)?;
     }
     Ok(files_to_write
         .iter()

@@ -14,7 +14,7 @@
 //! write_report(path, &report)?;
 //! ```
 
-use crate::{files, ExportError};
+use crate::{ExportError, OutputSet};
 use importer::{Scene, Side};
 use mesher::ElementMesh;
 use serde::{Deserialize, Serialize};
@@ -370,13 +370,20 @@ impl Counts {
 /// field; nothing is written then. (A `null` condition means "not solved as a linear
 /// system", not a NaN.)
 pub fn write_report(path: &Path, report: &Report) -> Result<(), ExportError> {
+    let mut set = OutputSet::new();
+    stage_report(&mut set, path, report)?;
+    set.commit().map(drop)
+}
+
+/// [`write_report`] as part of a larger set (renamed into place when `set` is committed).
+pub fn stage_report(set: &mut OutputSet, path: &Path, report: &Report) -> Result<(), ExportError> {
     check_finite(report)?;
     let mut json = serde_json::to_vec_pretty(report).map_err(|e| ExportError::Encode {
         what: "the bake report",
         message: e.to_string(),
     })?;
     json.push(b'\n');
-    files::write_atomically(path, &json)
+    set.stage(path, &json)
 }
 
 /// Every float of the report must be finite.

@@ -1,10 +1,11 @@
 //! Issue 14, item 3: two quads of a tessellated cone that touch at one corner, plus a lamp,
 //! never finished (any contour-based estimator, `--subdiv 1`).
 //!
-//! Read as f32 (as the OBJ importer does), each quad's shared corner lies ~1.5e-9 in front of
-//! the other's plane while the rest lies behind, so both are clipped to slivers ~1.6e-8 across
-//! (1.6e-7 of the pair frame's unit) that touch at that corner, 0.05 units from the pair
-//! frame's origin. The adaptive outer rule of the contour integral measured its rounding noise
+//! With its positions rounded to f32 (as the OBJ importer read them then; the scene below
+//! writes those f32 values out, now that it reads f64), each quad's shared corner lies ~1.5e-9
+//! in front of the other's plane while the rest lies behind, so both are clipped to slivers
+//! ~1.6e-8 across (1.6e-7 of the pair frame's unit) that touch at that corner, 0.05 units from
+//! the pair frame's origin. The adaptive outer rule of the contour integral measured its rounding noise
 //! relative to the slivers but every evaluation was rounded relative to the origin's distance,
 //! 3e5 times more: no piece was ever accepted and it bisected to depth 60 everywhere.
 //!
@@ -24,17 +25,17 @@ use mesher::{mesh, Subdivision};
 
 /// The scene of the report: quads `a` and `b` share vertex 2; the lamp is above.
 const OBJ: &str = "mtllib pair.mtl
-v 0.0382683432 0.0923879533 1
-v 0.0306146746 0.0739103626 1.1
-v 0.0565685425 0.0565685425 1.1
-v 0.0707106781 0.0707106781 1
-v 0 0.08 1.1
-v 0 0.05 1.2
-v 0.0191341716 0.0461939766 1.2
-v -0.5 -0.5 3
-v -0.5 0.5 3
-v 0.5 0.5 3
-v 0.5 -0.5 3
+v 0.03826834261417389 0.09238795191049576 1.0
+v 0.03061467409133911 0.07391036301851273 1.100000023841858
+v 0.05656854435801506 0.05656854435801506 1.100000023841858
+v 0.0707106813788414 0.0707106813788414 1.0
+v 0.0 0.07999999821186066 1.100000023841858
+v 0.0 0.05000000074505806 1.2000000476837158
+v 0.019134171307086945 0.04619397595524788 1.2000000476837158
+v -0.5 -0.5 3.0
+v -0.5 0.5 3.0
+v 0.5 0.5 3.0
+v 0.5 -0.5 3.0
 o a
 f 1 2 3 4
 o b

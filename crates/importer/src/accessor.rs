@@ -296,15 +296,15 @@ fn apply_sparse(
     let offset = to_usize(sparse.values.byte_offset.0)?;
     let replacements = read_strided(data, offset, element.size(), element, n)?;
 
-    for (&i, replacement) in indices
+    for (k, (&i, replacement)) in indices
         .iter()
         .zip(replacements.chunks_exact(element.components))
+        .enumerate()
     {
-        let i = i as usize;
-        let start = i * element.components;
+        let start = (i as usize).saturating_mul(element.components);
         let slot = values
-            .get_mut(start..start + element.components)
-            .ok_or_else(|| format!("index {i} is out of range ({count} elements)"))?;
+            .get_mut(start..start.saturating_add(element.components))
+            .ok_or_else(|| format!("sparse index {k} is out of range ({count} elements)"))?;
         slot.copy_from_slice(replacement);
     }
     Ok(())

@@ -5,6 +5,7 @@
 //! bounds-checked readers of [`crate::accessor`].
 
 use crate::accessor;
+use crate::files::Files;
 use crate::polygon::{self, Instance, SourceFace};
 use crate::{
     check_material, describe, ImportError, ImportStats, Layout, Light, LightKind, Material, Mesh,
@@ -19,18 +20,15 @@ use std::path::Path;
 
 /// Reads a `.gltf` or `.glb` file (told apart by the GLB magic, not the extension);
 /// external buffers are read from the file's directory.
-pub(crate) fn load(path: &Path) -> Result<Scene, ImportError> {
-    let bytes = std::fs::read(path).map_err(|source| ImportError::Io {
-        path: path.to_owned(),
-        source,
-    })?;
-    load_bytes(&bytes, Some(path.parent().unwrap_or(Path::new("."))))
+pub(crate) fn load(path: &Path, files: &Files) -> Result<Scene, ImportError> {
+    let bytes = files.read_scene(path)?;
+    load_bytes(&bytes, Some(files))
 }
 
-/// Reads glTF JSON or a GLB container from memory. With `base`, relative buffer URIs are
-/// files in that directory; without it only embedded buffers (data URIs, the GLB's BIN
+/// Reads glTF JSON or a GLB container from memory. With `files`, relative buffer URIs are
+/// files in the scene's folder; without it only embedded buffers (data URIs, the GLB's BIN
 /// chunk) can be read and an external one is an error.
-pub(crate) fn load_bytes(bytes: &[u8], base: Option<&Path>) -> Result<Scene, ImportError> {
+pub(crate) fn load_bytes(bytes: &[u8], files: Option<&Files>) -> Result<Scene, ImportError> {
     let (json, blob) = split_container(bytes)?;
     let root: Root = gltf::json::deserialize::from_slice(json)
         .map_err(|e| ImportError::Gltf(one_line(&e.to_string())))?;
@@ -38,12 +36,63 @@ pub(crate) fn load_bytes(bytes: &[u8], base: Option<&Path>) -> Result<Scene, Imp
     validate(&root)?;
     let document = gltf::Document::from_json_without_validation(root);
     check_buffer_uris(&document)?;
-    if let Some(base) = base {
-        check_buffer_files(&document, base)?;
+    let buffers = read_buffers(&document, files, blob.map(<[u8]>::to_vec))?;
+    build_scene(&document, &buffers, files)
+}
+
+/// `gltf::import_buffers`, except that external files are read through `files` (regular
+/// files only, size-capped, inside the scene's folder unless allowed) and an unreadable one
+/// is named.
+fn read_buffers(
+    document: &gltf::Document,
+    files: Option<&Files>,
+    mut blob: Option<Vec<u8>>,
+) -> Result<Vec<gltf::buffer::Data>, ImportError> {
+    let mut buffers = Vec::new();
+    for buffer in document.buffers() {
+        let index = buffer.index();
+        let source = buffer.source();
+        let external = match source {
+            gltf::buffer::Source::Uri(uri) if uri.starts_with("file:") => Some(Err(uri)),
+            gltf::buffer::Source::Uri(uri) if !uri.contains(':') => Some(Ok(uri)),
+            _ => None,
+        };
+        let data = match (external, files) {
+            (None, _) => gltf::buffer::Data::from_source_and_blob(source, None, &mut blob)
+                .map_err(|e| gltf_error(&e))?,
+            (Some(_), None) => {
+                return Err(ImportError::Gltf(
+                    "a buffer refers to an external file, which cannot be read without a \
+                     directory"
+                        .into(),
+                ))
+            }
+            (Some(reference), Some(files)) => {
+                let path = match reference {
+                    Ok(relative) => files.resolve(&percent_decoded_path(relative)),
+                    Err(uri) => files.file_uri(uri),
+                }
+                .map_err(|e| ImportError::Refused(format!("buffer {index}: {e}")))?;
+                let mut bytes = files.read(&path).map_err(|e| {
+                    ImportError::Gltf(format!(
+                        "buffer {index}: cannot read {}: {e}",
+                        path.display()
+                    ))
+                })?;
+                bytes.resize(bytes.len().next_multiple_of(4), 0);
+                gltf::buffer::Data(bytes)
+            }
+        };
+        if data.len() < buffer.length() {
+            return Err(ImportError::Gltf(format!(
+                "buffer {index}: {} bytes, shorter than its byteLength {}",
+                data.len(),
+                buffer.length()
+            )));
+        }
+        buffers.push(data);
     }
-    let buffers = gltf::import_buffers(&document, base, blob.map(<[u8]>::to_vec))
-        .map_err(|e| buffer_error(&document, base, &e))?;
-    build_scene(&document, &buffers, base)
+    Ok(buffers)
 }
 
 /// Splits a GLB container (glTF 2.0, "GLB File Format": 12-byte header, JSON chunk,
@@ -148,31 +197,6 @@ fn one_line(text: &str) -> String {
     text.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
-/// `gltf::import_buffers` reports an unreadable buffer file without its name: name the first
-/// external buffer file that cannot be opened.
-fn buffer_error(document: &gltf::Document, base: Option<&Path>, e: &gltf::Error) -> ImportError {
-    if let (gltf::Error::ExternalReferenceInSliceImport, None) = (e, base) {
-        return ImportError::Gltf(
-            "a buffer refers to an external file, which cannot be read without a directory".into(),
-        );
-    }
-    if let (gltf::Error::Io(io), Some(base)) = (e, base) {
-        let unreadable = document.buffers().find_map(|buffer| match buffer.source() {
-            gltf::buffer::Source::Uri(uri) if !uri.contains(':') => {
-                let file = String::from_utf8_lossy(&percent_decode(uri)).into_owned();
-                std::fs::File::open(base.join(&file))
-                    .is_err()
-                    .then(|| (buffer.index(), file))
-            }
-            _ => None,
-        });
-        if let Some((index, file)) = unreadable {
-            return ImportError::Gltf(format!("buffer {index}: cannot read {file:?}: {io}"));
-        }
-    }
-    gltf_error(e)
-}
-
 /// `gltf-json`'s validation indexes the accessor list with each POSITION index unchecked:
 /// refuse a dangling one before validating.
 fn check_position_indices(root: &Root) -> Result<(), ImportError> {
@@ -203,34 +227,6 @@ fn check_buffer_uris(document: &gltf::Document) -> Result<(), ImportError> {
                     buffer.index()
                 )));
             }
-        }
-    }
-    Ok(())
-}
-
-/// The file behind each external buffer URI (relative, or `file:`) must be a regular file:
-/// `gltf::import_buffers` reads it to the end, which never ends for `/dev/zero` or a FIFO.
-/// A file that does not exist is left to the reader, which reports it by name.
-fn check_buffer_files(document: &gltf::Document, base: &Path) -> Result<(), ImportError> {
-    for buffer in document.buffers() {
-        let gltf::buffer::Source::Uri(uri) = buffer.source() else {
-            continue;
-        };
-        let file = if let Some(rest) = uri.strip_prefix("file:") {
-            Path::new(rest.strip_prefix("//").unwrap_or(rest)).to_owned()
-        } else if uri.contains(':') {
-            continue;
-        } else {
-            base.join(String::from_utf8_lossy(&percent_decode(uri)).as_ref())
-        };
-        match std::fs::metadata(&file) {
-            Ok(meta) if !meta.is_file() => {
-                return Err(ImportError::Gltf(format!(
-                    "buffer {}: {uri:?} is not a regular file",
-                    buffer.index()
-                )))
-            }
-            _ => {}
         }
     }
     Ok(())
@@ -282,7 +278,7 @@ fn default_material() -> Material {
 fn build_scene(
     document: &gltf::Document,
     buffers: &[gltf::buffer::Data],
-    base: Option<&Path>,
+    files: Option<&Files>,
 ) -> Result<Scene, ImportError> {
     let root = document.as_json();
     let nodes = read_nodes(root)?;
@@ -376,7 +372,7 @@ fn build_scene(
     if polygons.is_empty() {
         return Err(ImportError::Empty);
     }
-    let loaded = crate::texture::load(root, buffers, base, &mut materials, &checked)?;
+    let loaded = crate::texture::load(root, buffers, files, &mut materials, &checked)?;
     warnings.extend(loaded.warnings);
     let uvs = polygon_uvs(&polygons, &materials, &loaded.authored, &layout, &cache)?;
     Ok(Scene {
@@ -390,6 +386,7 @@ fn build_scene(
         layout,
         stats,
         warnings,
+        input_files: Vec::new(),
     })
 }
 
@@ -866,9 +863,11 @@ fn read_primitive(
         // Not indexed: the vertices in order (count ≤ accessor::MAX_COUNT).
         None => (0..positions.len() as u32).collect(),
     };
-    if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {
+    // The message says where, not the value read: an index buffer that is not one (a file
+    // of another kind) would otherwise show its bytes as a number.
+    if let Some(k) = indices.iter().position(|&i| i as usize >= positions.len()) {
         return Err(fail(format!(
-            "index {bad} is out of range (the primitive has {} vertices)",
+            "index {k} of the index list is out of range (the primitive has {} vertices)",
             positions.len()
         )));
     }

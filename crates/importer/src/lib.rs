@@ -16,6 +16,7 @@ use glam::{DMat4, DVec3};
 use std::path::{Path, PathBuf};
 
 mod accessor;
+mod files;
 mod gltf_in;
 mod obj_in;
 mod obj_texture;
@@ -23,6 +24,7 @@ mod polygon;
 pub mod texture;
 
 pub use texture::{Authored, AuthoredTexture, EncodedImage, Image, Texture, TextureRef, Wrap};
+pub use files::MAX_FILE_BYTES;
 
 /// Where a polygon came from, so its results can be written back.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -289,6 +291,18 @@ pub struct Scene {
     pub stats: ImportStats,
     /// One line per thing the user should know about (dropped faces, skipped primitives).
     pub warnings: Vec<String>,
+    /// Every file read, in order: the scene file, then its external buffers, images and
+    /// material libraries (empty for [`load_bytes`]). Outputs must not be any of them.
+    pub input_files: Vec<PathBuf>,
+}
+
+/// How [`load_with`] reads a scene's files.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Options {
+    /// Read buffer, image and `mtllib` references that are absolute paths, `file:` URIs or
+    /// relative paths leading out of the scene file's folder (`..`, or a link inside it that
+    /// points out). By default they are an error.
+    pub allow_outside_paths: bool,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -310,6 +324,10 @@ pub enum ImportError {
     InvalidValue { what: String, problem: String },
     #[error("nothing left to bake: the scene has no polygons with area")]
     Empty,
+    /// A file the scene refers to may not be read: outside the scene's folder (see
+    /// [`Options::allow_outside_paths`]).
+    #[error("{0}")]
+    Refused(String),
     /// The scene exceeds a memory guard of the importer.
     #[error("too large: {0}")]
     TooLarge(String),
@@ -370,16 +388,31 @@ pub enum ImportError {
 ///    polygon with reversed vertices and negated normal.
 ///
 /// No polygon left is [`ImportError::Empty`].
+///
+/// Files are read as [`load_with`] reads them with the default [`Options`]: only regular
+/// files of at most [`MAX_FILE_BYTES`], only inside the scene file's folder.
 pub fn load(path: &Path) -> Result<Scene, ImportError> {
+    load_with(path, &Options::default())
+}
+
+/// [`load`] with `options`. Every file (the scene, its buffers, images and material
+/// libraries) must be a regular file (checked before it is opened: a FIFO, device or
+/// directory is refused without blocking) of at most [`MAX_FILE_BYTES`]; references are
+/// resolved in the scene file's folder and must stay inside it unless
+/// [`Options::allow_outside_paths`]. An OBJ's faces are counted before it is parsed.
+pub fn load_with(path: &Path, options: &Options) -> Result<Scene, ImportError> {
     let extension = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    match extension.as_deref() {
-        Some("gltf" | "glb") => gltf_in::load(path),
-        Some("obj") => obj_in::load(path),
+    let files = files::Files::new(path, options.allow_outside_paths);
+    let mut scene = match extension.as_deref() {
+        Some("gltf" | "glb") => gltf_in::load(path, &files),
+        Some("obj") => obj_in::load(path, &files),
         _ => Err(ImportError::UnsupportedExtension),
-    }
+    }?;
+    scene.input_files = files.into_read();
+    Ok(scene)
 }
 
 /// A scene format, for [`load_bytes`].

@@ -7,6 +7,7 @@
 //! and line elements (`p`, `l`: `tobj` reads a 3-vertex `l` as a face) and faces with
 //! fewer than 3 vertices, and normalises whitespace so `mtllib`/`usemtl` names parse.
 
+use crate::files::{count_obj_faces, Files, Refused};
 use crate::polygon::{self, Instance, SourceFace};
 use crate::{
     check_material, describe, ImportError, ImportStats, Layout, Material, Mesh, Node, Origin,
@@ -23,30 +24,24 @@ pub(crate) const DEFAULT_RHO: f64 = 0.8;
 /// The most vertices one face may have: ear clipping is quadratic to cubic in it.
 const MAX_FACE_VERTICES: usize = 1024;
 
-/// Reads an OBJ file and the MTL libraries it names (relative to the file's directory).
-pub(crate) fn load(path: &Path) -> Result<Scene, ImportError> {
-    let bytes = std::fs::read(path).map_err(|source| ImportError::Io {
+/// Reads an OBJ file and the MTL libraries it names (relative to the file's folder, and
+/// inside it unless outside paths are allowed). Faces are counted by a byte scan first, so a
+/// file with more than the scene's face limit is refused before it is read and parsed.
+pub(crate) fn load(path: &Path, files: &Files) -> Result<Scene, ImportError> {
+    let faces = count_obj_faces(path).map_err(|source| ImportError::Io {
         path: path.to_owned(),
         source,
     })?;
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let read_mtl = |name: &Path| {
-        let path = dir.join(name);
-        (path.display().to_string(), read_regular_file(&path))
+    polygon::count_faces(&mut 0, usize::try_from(faces).unwrap_or(usize::MAX))?;
+    let bytes = files.read_scene(path)?;
+    let read_mtl = |name: &Path| match files.resolve(name) {
+        Ok(path) => (path.display().to_string(), files.read(&path)),
+        Err(refused) => (
+            name.display().to_string(),
+            Err(std::io::Error::other(Refused(refused))),
+        ),
     };
     load_with(&bytes, &path.display().to_string(), &read_mtl)
-}
-
-/// Reads a file that must be a regular one: reading `/dev/zero` or a FIFO named by
-/// `mtllib` would never end.
-fn read_regular_file(path: &Path) -> std::io::Result<Vec<u8>> {
-    if !std::fs::metadata(path)?.is_file() {
-        return Err(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            "not a regular file",
-        ));
-    }
-    std::fs::read(path)
 }
 
 /// Reads OBJ text from memory; every `mtllib` it names reads `mtl` (none: every material
@@ -141,8 +136,8 @@ fn check_obj(text: &str) -> Result<CheckedObj, ImportError> {
             }
             "f" => {
                 let vertices: Vec<&str> = rest.split_whitespace().collect();
-                for vertex in &vertices {
-                    check_face_vertex(vertex, &running, &totals)
+                for (j, vertex) in vertices.iter().enumerate() {
+                    check_face_vertex(j, vertex, &running, &totals)
                         .map_err(|e| ImportError::Obj(format!("line {}: {e}", n + 1)))?;
                 }
                 if vertices.len() < 3 {
@@ -182,8 +177,11 @@ fn count_vertex_data(text: &str) -> [usize; 3] {
 
 /// One `v`, `v/vt`, `v//vn` or `v/vt/vn` reference: 1-based, or negative (relative to the
 /// data read so far), and in range. Texture and normal references are ignored by `tobj`
-/// when the file has none, so they are only checked when it has some.
+/// when the file has none, so they are only checked when it has some. Messages say which
+/// vertex (`j`, from 0) of the line and at most the index it parsed to, never its text: a
+/// file that is no OBJ at all is not echoed.
 fn check_face_vertex(
+    j: usize,
     vertex: &str,
     running: &[usize; 3],
     totals: &[usize; 3],
@@ -191,7 +189,7 @@ fn check_face_vertex(
     const KINDS: [&str; 3] = ["position", "texture coordinate", "normal"];
     let parts: Vec<&str> = vertex.split('/').collect();
     if parts.len() > 3 {
-        return Err(format!("face vertex {vertex:?} has more than 3 parts"));
+        return Err(format!("face vertex {} has more than 3 parts", j + 1));
     }
     for (k, part) in parts.iter().enumerate() {
         if part.is_empty() || (k > 0 && totals[k] == 0) {
@@ -199,7 +197,7 @@ fn check_face_vertex(
         }
         let x: i64 = part
             .parse()
-            .map_err(|_| format!("face vertex {vertex:?} is not a number"))?;
+            .map_err(|_| format!("face vertex {} is not a number", j + 1))?;
         let valid = match x {
             x if x > 0 => (x as u64) <= totals[k] as u64,
             x if x < 0 => x.unsigned_abs() <= running[k] as u64,
@@ -207,8 +205,10 @@ fn check_face_vertex(
         };
         if !valid {
             return Err(format!(
-                "face vertex {vertex:?} refers to {} {x}, which does not exist ({} in the file)",
-                KINDS[k], totals[k]
+                "face vertex {} refers to {} {x}, which does not exist ({} in the file)",
+                j + 1,
+                KINDS[k],
+                totals[k]
             ));
         }
     }
@@ -225,6 +225,12 @@ fn load_mtl(
 ) -> tobj::MTLLoadResult {
     let bytes = match bytes {
         Ok(bytes) => bytes,
+        Err(e) if e.get_ref().is_some_and(|inner| inner.is::<Refused>()) => {
+            error
+                .borrow_mut()
+                .get_or_insert(ImportError::Refused(format!("mtllib {e}")));
+            return Err(tobj::LoadError::OpenFileFailed);
+        }
         Err(e) => {
             warnings.borrow_mut().push(format!(
                 "cannot read material library {name} ({e}): its materials fall back to the default"
@@ -256,7 +262,7 @@ fn check_mtl(text: &str) -> Result<String, String> {
                 None if matches!(keyword, "Ka" | "Ks") => continue,
                 None => {
                     return Err(format!(
-                        "line {}: cannot read colour {keyword} {rest:?} (expected r g b)",
+                        "line {}: cannot read colour {keyword} (expected r g b)",
                         n + 1
                     ))
                 }
@@ -293,8 +299,8 @@ fn push_line(out: &mut String, keyword: &str, rest: &str) {
 fn convert_material(m: &tobj::Material) -> Material {
     Material {
         name: Some(m.name.clone()),
-        rho: m.diffuse.map_or([DEFAULT_RHO; 3], |d| d.map(f64::from)),
-        emission: m.emissive.map_or([0.0; 3], |e| e.map(f64::from)),
+        rho: m.diffuse.unwrap_or([DEFAULT_RHO; 3]),
+        emission: m.emissive.unwrap_or([0.0; 3]),
         double_sided: false,
         base_color_texture: None,
         emissive_texture: None,
@@ -416,6 +422,7 @@ fn build_scene(
         layout,
         stats,
         warnings,
+        input_files: Vec::new(),
     })
 }
 
@@ -424,7 +431,7 @@ fn model_faces(mesh: &tobj::Mesh) -> Result<Vec<SourceFace>, String> {
     let position = |i: u32| -> Option<DVec3> {
         let i = i as usize * 3;
         let p = mesh.positions.get(i..i + 3)?;
-        Some(DVec3::new(p[0].into(), p[1].into(), p[2].into()))
+        Some(DVec3::new(p[0], p[1], p[2]))
     };
     let arities: Vec<usize> = if mesh.face_arities.is_empty() {
         vec![3; mesh.indices.len() / 3]

@@ -7,12 +7,12 @@
 //! check texture, image and sampler objects (it never needed them), so nothing here may trust
 //! an index.
 
+use crate::files::Files;
 use crate::{ImportError, Material};
 use glam::DVec2;
 use gltf::json::validation::Checked;
 use gltf::json::Root;
 use std::collections::HashMap;
-use std::path::Path;
 
 /// A decoded image: linear RGB per texel, row-major, the first row at v = 0 (glTF's UV origin
 /// is the image's top-left corner).
@@ -157,14 +157,14 @@ pub(crate) struct Loaded {
 pub(crate) fn load(
     root: &Root,
     buffers: &[gltf::buffer::Data],
-    base: Option<&Path>,
+    files: Option<&Files>,
     materials: &mut [Material],
     used: &[bool],
 ) -> Result<Loaded, ImportError> {
     let mut loader = Loader {
         root,
         buffers,
-        base,
+        files,
         textures: Vec::new(),
         images: Vec::new(),
         texture_of: HashMap::new(),
@@ -211,7 +211,7 @@ pub(crate) fn load(
 struct Loader<'a> {
     root: &'a Root,
     buffers: &'a [gltf::buffer::Data],
-    base: Option<&'a Path>,
+    files: Option<&'a Files>,
     textures: Vec<Texture>,
     images: Vec<Image>,
     /// File texture → decoded texture; file image → decoded image.
@@ -295,7 +295,7 @@ impl Loader<'_> {
         if let Some(known) = self.authored_image_of.get(&source) {
             return known.clone();
         }
-        let made = image_bytes(self.root, self.buffers, self.base, source).and_then(|bytes| {
+        let made = image_bytes(self.root, self.buffers, self.files, source).and_then(|bytes| {
             let mime_type = mime_type(&bytes, &format!("image {source}"))?;
             let name = self.root.images.get(source).and_then(|i| i.name.clone());
             self.authored.images.push(EncodedImage {
@@ -444,7 +444,7 @@ const MAX_TEXELS: u64 = 1 << 28;
 fn image_bytes(
     root: &Root,
     buffers: &[gltf::buffer::Data],
-    base: Option<&Path>,
+    files: Option<&Files>,
     source: usize,
 ) -> Result<Vec<u8>, String> {
     let json = root
@@ -478,14 +478,19 @@ fn image_bytes(
                     .ok_or_else(|| format!("image {source}: invalid base64 in its data URI"))?;
                 &owned
             } else {
-                let base = base.ok_or_else(|| {
+                let files = files.ok_or_else(|| {
                     format!(
                         "image {source}: external file {uri:?} but the scene was read from memory"
                     )
                 })?;
-                let decoded = crate::gltf_in::percent_decoded_path(uri);
-                let path = base.join(decoded);
-                owned = std::fs::read(&path)
+                let path = if uri.starts_with("file:") {
+                    files.file_uri(uri)
+                } else {
+                    files.resolve(&crate::gltf_in::percent_decoded_path(uri))
+                }
+                .map_err(|e| format!("image {source}: {e}"))?;
+                owned = files
+                    .read(&path)
                     .map_err(|e| format!("cannot read image file {}: {e}", path.display()))?;
                 &owned
             }

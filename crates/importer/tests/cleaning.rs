@@ -3,7 +3,9 @@
 
 mod common;
 
-use bake_importer::{load, load_bytes, load_obj_bytes, Format, ImportError, Scene};
+use bake_importer::{
+    load, load_bytes, load_obj_bytes, load_with, Format, ImportError, Options, Scene,
+};
 use common::GltfBuilder;
 use glam::DVec3;
 use serde_json::json;
@@ -271,7 +273,21 @@ fn buffer_or_material_library_that_is_not_a_regular_file_is_refused() {
     let path = b.write_external(&dir.path().join("c.gltf"));
     let text = std::fs::read_to_string(&path).expect("read");
     std::fs::write(&path, text.replace("\"c.bin\"", "\"file:///dev/zero\"")).expect("write");
-    let error = load(&path).expect_err("not a regular file");
+    // Outside the scene's folder: refused unless allowed, then refused as no regular file.
+    let error = load(&path).expect_err("outside the folder");
+    assert!(
+        error.to_string().contains("--allow-outside-paths"),
+        "{error}"
+    );
+    let allow = Options {
+        allow_outside_paths: true,
+    };
+    let error = load_with(&path, &allow).expect_err("not a regular file");
+    assert!(error.to_string().contains("not a regular file"), "{error}");
+    // Inside the folder, through a link.
+    std::os::unix::fs::symlink("/dev/zero", dir.path().join("z.bin")).expect("symlink");
+    std::fs::write(&path, text.replace("\"c.bin\"", "\"z.bin\"")).expect("write");
+    let error = load_with(&path, &allow).expect_err("not a regular file");
     assert!(error.to_string().contains("not a regular file"), "{error}");
 
     let obj = dir.path().join("d.obj");
@@ -280,8 +296,15 @@ fn buffer_or_material_library_that_is_not_a_regular_file_is_refused() {
         "mtllib /dev/zero\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
     )
     .expect("write");
-    let scene = load(&obj).expect("loads with the default material");
+    let error = load(&obj).expect_err("outside the folder");
+    assert!(
+        error.to_string().contains("--allow-outside-paths"),
+        "{error}"
+    );
+    let scene = load_with(&obj, &allow).expect("loads with the default material");
     assert_eq!(warnings_with(&scene, "not a regular file").len(), 1);
+    // The files read, in order: the OBJ only (the library was not).
+    assert_eq!(scene.input_files, vec![obj.clone()]);
 }
 
 /// Twice-area / 2 of a planar polygon (Newell).

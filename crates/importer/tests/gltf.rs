@@ -377,9 +377,19 @@ fn glb_and_external_buffer_equal_embedded_gltf() {
     let material = json!({ "pbrMetallicRoughness": { "baseColorFactor": [0.5, 0.5, 0.5, 1.0] } });
     let b = single(&SQUARE, Some(&[0, 1, 2, 0, 2, 3]), Some(material));
     let dir = tempfile::tempdir().unwrap();
-    let embedded = load(&b.write_embedded(&dir.path().join("a.gltf"))).unwrap();
-    let external = load(&b.write_external(&dir.path().join("b.gltf"))).unwrap();
-    let binary = load(&b.write_glb(&dir.path().join("c.GLB"))).unwrap();
+    let mut embedded = load(&b.write_embedded(&dir.path().join("a.gltf"))).unwrap();
+    let mut external = load(&b.write_external(&dir.path().join("b.gltf"))).unwrap();
+    let mut binary = load(&b.write_glb(&dir.path().join("c.GLB"))).unwrap();
+    // The files each read: the scene, and the external buffer beside it.
+    assert_eq!(embedded.input_files, vec![dir.path().join("a.gltf")]);
+    assert_eq!(
+        external.input_files,
+        vec![dir.path().join("b.gltf"), dir.path().join("b.bin")]
+    );
+    assert_eq!(binary.input_files, vec![dir.path().join("c.GLB")]);
+    for scene in [&mut embedded, &mut external, &mut binary] {
+        scene.input_files.clear();
+    }
     assert_eq!(embedded, external);
     assert_eq!(embedded, binary);
     assert_eq!(binary.polygons.len(), 1);
@@ -451,7 +461,12 @@ fn without_scenes_every_root_node_is_baked() {
 fn index_out_of_range_is_an_error() {
     match write_and_load(&single(&TRIANGLE, Some(&[0, 1, 3]), None)) {
         Err(ImportError::Gltf(message)) => {
-            assert!(message.contains("index 3 is out of range"), "{message}")
+            assert!(
+                message.contains("index 2 of the index list is out of range"),
+                "{message}"
+            );
+            // Where, not the value read from the buffer.
+            assert!(!message.contains("index 3"), "{message}")
         }
         other => panic!("expected a glTF error, got {other:?}"),
     }

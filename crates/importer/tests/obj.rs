@@ -194,6 +194,35 @@ f 1 2 3 4
     );
 }
 
+/// Millimetre quads 1 km from the origin, in a tilted plane: planar in f64 (the text's
+/// 12 decimals are 1e-12 m), but f32 positions (6e-5 m apart at 1 km) would warp each by
+/// far more than its planarity tolerance (1e-6 × its 1.4 mm size) and split it.
+#[test]
+fn millimetre_quads_a_kilometre_away_stay_quads() {
+    let origin = d(1000.0, 1000.0, 1000.0);
+    let u = d(1.0, -1.0, 0.0).normalize() * 1e-3;
+    let v = d(1.0, 1.0, -2.0).normalize() * 1e-3;
+    let mut obj = String::new();
+    let mut faces = String::new();
+    for k in 0..10 {
+        let o = origin + u * (2.0 * k as f64);
+        for p in [o, o + u, o + u + v, o + v] {
+            obj += &format!("v {:.12} {:.12} {:.12}\n", p.x, p.y, p.z);
+        }
+        let b = 4 * k + 1;
+        faces += &format!("f {} {} {} {}\n", b, b + 1, b + 2, b + 3);
+    }
+    obj += &faces;
+    let scene = load_obj(&obj, None).unwrap();
+    assert_eq!(scene.polygons.len(), 10, "{:?}", scene.warnings);
+    assert!(scene.polygons.iter().all(|p| p.vertices.len() == 4));
+    assert!(
+        !scene.warnings.iter().any(|w| w.contains("non-planar")),
+        "{:?}",
+        scene.warnings
+    );
+}
+
 #[test]
 fn consecutive_obj_triangles_merge_into_a_quad() {
     let obj = "\

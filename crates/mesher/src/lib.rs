@@ -65,8 +65,9 @@ pub enum MeshError {
     InvalidSubdivision(String),
     #[error("polygon {polygon} has {sides} vertices; the mesher takes triangles and quads")]
     UnsupportedPolygon { polygon: usize, sides: usize },
+    /// The count, or a lower bound of it (`at least 10^…`) when it does not fit in a u64.
     #[error("subdivision would create {0} elements, more than the mesher's limit of {max}", max = MAX_ELEMENTS)]
-    TooManyElements(u64),
+    TooManyElements(String),
 }
 
 /// Hard cap on the element count (indices are `u32`).
@@ -94,34 +95,8 @@ pub fn max_element_size(polygons: &[Polygon], per_diagonal: f64) -> f64 {
 /// [`Subdivision::Count`] n = nu = nv = N; with [`Subdivision::MaxSize`] each direction gets
 /// the fewest divisions that keep every element edge ≤ L.
 pub fn mesh(polygons: &[Polygon], subdivision: Subdivision) -> Result<ElementMesh, MeshError> {
-    match subdivision {
-        Subdivision::Count(0) => {
-            return Err(MeshError::InvalidSubdivision(
-                "--subdiv must be at least 1".into(),
-            ))
-        }
-        Subdivision::MaxSize(l) if !(l.is_finite() && l > 0.0) => {
-            return Err(MeshError::InvalidSubdivision(format!(
-                "--max-element-size must be a positive number, got {l}"
-            )))
-        }
-        _ => {}
-    }
     // Count first so a huge request fails before allocating.
-    let mut total: u64 = 0;
-    let mut plan = Vec::with_capacity(polygons.len());
-    for (index, p) in polygons.iter().enumerate() {
-        let (nu, nv) = divisions(p, subdivision, index)?;
-        total += if p.vertices.len() == 4 {
-            nu * nv
-        } else {
-            nu * nu
-        };
-        if total > MAX_ELEMENTS {
-            return Err(MeshError::TooManyElements(total));
-        }
-        plan.push((nu as u32, nv as u32));
-    }
+    let (total, plan) = plan(polygons, subdivision)?;
     let mut out = ElementMesh::default();
     out.elements.reserve(total as usize);
     for (index, (p, &(nu, nv))) in polygons.iter().zip(&plan).enumerate() {
@@ -140,23 +115,107 @@ pub fn mesh(polygons: &[Polygon], subdivision: Subdivision) -> Result<ElementMes
     Ok(out)
 }
 
-fn divisions(p: &Polygon, s: Subdivision, index: usize) -> Result<(u64, u64), MeshError> {
+/// How many elements [`mesh`] would create, computed from the polygons' edge lengths alone
+/// (nothing is allocated): exact, in checked u64 arithmetic, or
+/// [`MeshError::TooManyElements`] above [`MAX_ELEMENTS`].
+pub fn element_count(polygons: &[Polygon], subdivision: Subdivision) -> Result<u64, MeshError> {
+    Ok(plan(polygons, subdivision)?.0)
+}
+
+/// The element count and each polygon's divisions.
+fn plan(
+    polygons: &[Polygon],
+    subdivision: Subdivision,
+) -> Result<(u64, Vec<(u32, u32)>), MeshError> {
+    match subdivision {
+        Subdivision::Count(0) => {
+            return Err(MeshError::InvalidSubdivision(
+                "--subdiv must be at least 1".into(),
+            ))
+        }
+        Subdivision::MaxSize(l) if !(l.is_finite() && l > 0.0) => {
+            return Err(MeshError::InvalidSubdivision(format!(
+                "--max-element-size must be a positive number, got {l}"
+            )))
+        }
+        _ => {}
+    }
+    let too_many = |count: Option<u64>| {
+        MeshError::TooManyElements(match count {
+            Some(n) => n.to_string(),
+            None => approximate_count(polygons, subdivision),
+        })
+    };
+    let mut total: u64 = 0;
+    let mut plan = Vec::with_capacity(polygons.len());
+    for (index, p) in polygons.iter().enumerate() {
+        let (nu, nv) = divisions(p, subdivision, index)?.ok_or_else(|| too_many(None))?;
+        let here = if p.vertices.len() == 4 {
+            nu.checked_mul(nv)
+        } else {
+            nu.checked_mul(nu)
+        };
+        total = here
+            .and_then(|h| total.checked_add(h))
+            .ok_or_else(|| too_many(None))?;
+        if total > MAX_ELEMENTS {
+            return Err(too_many(Some(total)));
+        }
+        // Both fit: each is at most the total, at most 2^30.
+        plan.push((nu as u32, nv as u32));
+    }
+    Ok((total, plan))
+}
+
+/// A lower bound of the element count for a message when it does not fit in a u64: the
+/// largest polygon's, as a power of ten (`at least 10^600`).
+fn approximate_count(polygons: &[Polygon], subdivision: Subdivision) -> String {
+    let l = match subdivision {
+        Subdivision::MaxSize(l) => l,
+        Subdivision::Count(n) => return format!("at least {}", u64::from(n) * u64::from(n)),
+    };
+    // Logarithms: the count itself overflows f64 for l = 1e-300.
+    let log10_largest = polygons
+        .iter()
+        .map(|p| {
+            let v = &p.vertices;
+            let (a, b) = match v.len() {
+                4 => (
+                    v[0].distance(v[1]).max(v[3].distance(v[2])),
+                    v[0].distance(v[3]).max(v[1].distance(v[2])),
+                ),
+                _ => {
+                    let e = v[0].distance(v[1]).max(v[1].distance(v[2]));
+                    (e, e)
+                }
+            };
+            (a / l).max(1.0).log10() + (b / l).max(1.0).log10()
+        })
+        .fold(f64::NEG_INFINITY, f64::max);
+    format!("at least 10^{}", log10_largest.max(0.0).floor())
+}
+
+/// Divisions along u and v; `None` when one alone exceeds [`MAX_ELEMENTS`].
+fn divisions(p: &Polygon, s: Subdivision, index: usize) -> Result<Option<(u64, u64)>, MeshError> {
     let v = &p.vertices;
-    let steps = |len: f64, l: f64| ((len / l).ceil() as u64).max(1);
+    // The ratio is checked as an f64 first: `1 / 1e-300` does not fit a u64.
+    let steps = |len: f64, l: f64| {
+        let ratio = (len / l).ceil();
+        (ratio <= MAX_ELEMENTS as f64).then(|| (ratio as u64).max(1))
+    };
     match (v.len(), s) {
-        (3 | 4, Subdivision::Count(n)) => Ok((n as u64, n as u64)),
+        (3 | 4, Subdivision::Count(n)) => Ok(Some((n as u64, n as u64))),
         (4, Subdivision::MaxSize(l)) => {
             let u = v[0].distance(v[1]).max(v[3].distance(v[2]));
             let w = v[0].distance(v[3]).max(v[1].distance(v[2]));
-            Ok((steps(u, l), steps(w, l)))
+            Ok(steps(u, l).zip(steps(w, l)))
         }
         (3, Subdivision::MaxSize(l)) => {
             let e = v[0]
                 .distance(v[1])
                 .max(v[1].distance(v[2]))
                 .max(v[2].distance(v[0]));
-            let n = steps(e, l);
-            Ok((n, n))
+            Ok(steps(e, l).map(|n| (n, n)))
         }
         (sides, _) => Err(MeshError::UnsupportedPolygon {
             polygon: index,
@@ -380,5 +439,20 @@ mod tests {
             mesh(&[quad()], Subdivision::MaxSize(1e-9)),
             Err(MeshError::TooManyElements(_))
         ));
+        // 1 / 1e-300 overflows u64 (it used to wrap past the check).
+        assert!(matches!(
+            element_count(&[quad()], Subdivision::MaxSize(1e-300)),
+            Err(MeshError::TooManyElements(_))
+        ));
+        // 131072 × 73272 (ceil(√1.25 × 65536)): over the limit, counted exactly.
+        let over = element_count(&[quad()], Subdivision::MaxSize(1.0 / 65536.0));
+        assert!(
+            matches!(&over, Err(MeshError::TooManyElements(n)) if *n == (131_072u64 * 73_272).to_string()),
+            "{over:?}"
+        );
+        assert_eq!(
+            element_count(&[quad()], Subdivision::Count(3)).ok(),
+            Some(9)
+        );
     }
 }

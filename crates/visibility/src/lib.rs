@@ -252,10 +252,23 @@ impl Occluders {
     /// Which polygon pairs some third polygon can come between, with those candidate
     /// occluders; computed in parallel, the same whatever the thread count.
     pub fn occludable_pairs(&self) -> OccludablePairs {
+        self.occludable_pairs_with_progress(&|_| {})
+    }
+
+    /// [`Occluders::occludable_pairs`], calling `progress(1)` after each of the polygons' rows
+    /// (from any thread), for a progress bar over [`Occluders::len`] steps.
+    pub fn occludable_pairs_with_progress(
+        &self,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> OccludablePairs {
         let n = self.pieces.len();
         let rows: Vec<(u64, Vec<OccludableRow>)> = (0..n)
             .into_par_iter()
-            .map(|p| self.occludable_row(p))
+            .map(|p| {
+                let row = self.occludable_row(p);
+                progress(1);
+                row
+            })
             .collect();
         let mut out = OccludablePairs {
             pairs: Vec::new(),

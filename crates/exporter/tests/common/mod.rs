@@ -69,6 +69,7 @@ pub fn fixture() -> Fixture {
             against_winding: 3,
         },
         warnings: vec!["mesh \"lines\": primitive 0 skipped (mode LINES)".into()],
+        input_files: Vec::new(),
     };
     Fixture {
         scene,
