@@ -23,8 +23,8 @@ mod obj_texture;
 mod polygon;
 pub mod texture;
 
-pub use texture::{Authored, AuthoredTexture, EncodedImage, Image, Texture, TextureRef, Wrap};
 pub use files::MAX_FILE_BYTES;
+pub use texture::{Authored, AuthoredTexture, EncodedImage, Image, Texture, TextureRef, Wrap};
 
 /// Where a polygon came from, so its results can be written back.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]

@@ -155,11 +155,11 @@ fn polygon_uv(mesh: &tobj::Mesh, face: usize, vertices: &[DVec3]) -> Option<Poly
     let indices = mesh.indices.get(start..start + arity(face))?;
     let position = |i: u32| -> Option<DVec3> {
         let p = mesh.positions.get(i as usize * 3..i as usize * 3 + 3)?;
-        Some(DVec3::new(p[0].into(), p[1].into(), p[2].into()))
+        Some(DVec3::new(p[0], p[1], p[2]))
     };
     let texcoord = |i: u32| -> Option<DVec2> {
         let t = mesh.texcoords.get(i as usize * 2..i as usize * 2 + 2)?;
-        Some(DVec2::new(f64::from(t[0]), 1.0 - f64::from(t[1])))
+        Some(DVec2::new(t[0], 1.0 - t[1]))
     };
     let uvs: Vec<DVec2> = vertices
         .iter()
