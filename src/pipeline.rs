@@ -165,7 +165,10 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
                 .unwrap_or_else(|| lightmap::default_texel_size(&scene.polygons)),
             max_size: cli.lightmap_max,
         };
-        let built = lightmap::build(&scene.polygons, mesh, h, &options)
+        bake_core::Progress::start(&bars, "lightmap", 0);
+        let built = lightmap::build(&scene.polygons, mesh, h, &options);
+        bake_core::Progress::finish(&bars);
+        let built = built
             .with_context(|| format!("{}: cannot build the lightmap", input.display()))
             .map_err(internal)?;
         if built.stats.reductions > 0 {
@@ -203,6 +206,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     // Every file of the set is staged (written to a temporary beside it) before any is
     // renamed into place: the report first, then the lightmap, then OUT last.
     exporter::remove_stale_temporaries(&planned);
+    bake_core::Progress::start(&bars, "writing", 0);
     let mut vertex_files = exporter::OutputSet::new();
     if cli.target != Target::Lightmap {
         exporter::stage_gltf(&mut vertex_files, &cli.output, &vertex_bake)
@@ -221,6 +225,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             .with_context(|| format!("cannot write {}", paths.gltf.display()))
             .map_err(internal)?;
     }
+    bake_core::Progress::finish(&bars);
     stage("export", &mut lap);
 
     let mut set = exporter::OutputSet::new();
@@ -358,6 +363,14 @@ struct Bars {
     bar: Mutex<Option<ProgressBar>>,
 }
 
+/// A bar still open when the bake stops early (an error return) is cleared, so the error
+/// line stands alone.
+impl Drop for Bars {
+    fn drop(&mut self) {
+        bake_core::Progress::finish(self);
+    }
+}
+
 impl Bars {
     fn new(quiet: bool) -> Bars {
         Bars {
@@ -372,12 +385,23 @@ impl bake_core::Progress for Bars {
         if !self.enabled {
             return;
         }
-        let bar = ProgressBar::new(total);
-        if let Ok(style) =
-            ProgressStyle::with_template("{msg:>13} [{bar:40}] {pos}/{len}, {eta} left")
-        {
-            bar.set_style(style.progress_chars("=> "));
-        }
+        let bar = if total == 0 {
+            // Open-ended (an iterative solve): a count, no bar or time left.
+            let bar = ProgressBar::new_spinner();
+            if let Ok(style) = ProgressStyle::with_template("{msg:>13} {spinner} {elapsed}") {
+                bar.set_style(style);
+            }
+            bar.enable_steady_tick(std::time::Duration::from_millis(120));
+            bar
+        } else {
+            let bar = ProgressBar::new(total);
+            if let Ok(style) =
+                ProgressStyle::with_template("{msg:>13} [{bar:40}] {pos}/{len}, {eta} left")
+            {
+                bar.set_style(style.progress_chars("=> "));
+            }
+            bar
+        };
         bar.set_message(stage.to_string());
         if let Ok(mut slot) = self.bar.lock() {
             *slot = Some(bar);

@@ -227,3 +227,104 @@ fn acceptance_table() {
         }
     }
 }
+
+const BANDS_U64: u64 = 3;
+
+/// Records what a bake tells its progress bar: (stage, total, steps advanced).
+#[derive(Default)]
+struct Recorder(std::sync::Mutex<Vec<(String, u64, u64)>>);
+
+impl bake_core::Progress for Recorder {
+    fn start(&self, stage: &str, total: u64) {
+        if let Ok(mut v) = self.0.lock() {
+            v.push((stage.to_string(), total, 0));
+        }
+    }
+    fn advance(&self, steps: u64) {
+        if let Ok(mut v) = self.0.lock() {
+            if let Some(last) = v.last_mut() {
+                last.2 += steps;
+            }
+        }
+    }
+    fn finish(&self) {}
+}
+
+/// Every long phase of a hierarchical bake shows progress: the first linking pass by
+/// polygon, each refinement pass by kept link (each to its end), and the solve by operator
+/// application (open-ended: as many as GMRES made).
+#[test]
+fn every_phase_of_a_hierarchical_bake_reports_progress() {
+    let scene = importer::load(&fixture("two-rooms.gltf")).expect("load the fixture");
+    let request = Request {
+        subdivision: Some(Subdivision::MaxSize(0.4)),
+        transport: TransportKind::Hierarchical,
+        link_tolerance: Some(1e-3),
+        ..Request::default()
+    };
+    let settings = Settings::resolve(&request, &scene.polygons).expect("settings");
+    let recorder = Recorder::default();
+    let baked = bake_core::run(&scene, &settings, &recorder).expect("bake");
+    let stages = recorder.0.into_inner().expect("the record");
+    let names: Vec<&str> = stages.iter().map(|s| s.0.as_str()).collect();
+    let first = stages
+        .iter()
+        .find(|s| s.0 == "links")
+        .unwrap_or_else(|| panic!("no links stage in {names:?}"));
+    assert_eq!(first.1, scene.polygons.len() as u64);
+    assert_eq!(first.2, first.1, "the first pass ends at its total");
+    let passes: Vec<_> = stages
+        .iter()
+        .filter(|s| s.0.starts_with("links pass"))
+        .collect();
+    assert_eq!(passes.len() as u32 + 1, baked.counts.passes, "{names:?}");
+    for (k, pass) in passes.iter().enumerate() {
+        assert_eq!(pass.0, format!("links pass {}", k + 2));
+        assert!(pass.1 > 0 && pass.2 == pass.1, "{pass:?}");
+    }
+    let solve = stages
+        .iter()
+        .find(|s| s.0 == "solve")
+        .expect("a solve stage");
+    assert_eq!(solve.1, 0, "open-ended");
+    let iterations: u32 = baked.solution.iterations.iter().sum();
+    assert!(
+        solve.2 >= u64::from(iterations) / BANDS_U64 && solve.2 > 0,
+        "{solve:?} for {iterations} iterations"
+    );
+}
+
+/// A scene where nothing emits (and no light shines) has b = 0 exactly: no transport is
+/// built, on either path, and the bake says why.
+#[test]
+fn a_scene_without_light_builds_no_transport() {
+    let mut scene = importer::load(&fixture("two-rooms.gltf")).expect("load the fixture");
+    for m in &mut scene.materials {
+        m.emission = [0.0; 3];
+    }
+    for transport in [TransportKind::Dense, TransportKind::Hierarchical] {
+        let request = Request {
+            subdivision: Some(Subdivision::MaxSize(0.4)),
+            transport,
+            irradiance: true,
+            ..Request::default()
+        };
+        let settings = Settings::resolve(&request, &scene.polygons).expect("settings");
+        let baked = bake_core::run(&scene, &settings, &bake_core::Silent).expect("bake");
+        assert!(baked.solution.b.iter().all(|b| *b == [0.0; 3]));
+        assert!(baked.irradiance.iter().flatten().all(|h| *h == [0.0; 3]));
+        assert_eq!(baked.counts.links, 0);
+        assert_eq!(baked.counts.pairs_evaluated, 0);
+        assert_eq!(baked.counts.rays_cast, 0);
+        assert!(
+            baked.transport.reason.contains("not built"),
+            "{}",
+            baked.transport.reason
+        );
+        assert_eq!(baked.energy.imbalance, [0.0; 3]);
+        assert!(baked
+            .warnings
+            .iter()
+            .any(|w| w.contains("no emitters and no lights")));
+    }
+}

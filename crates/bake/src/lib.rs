@@ -24,7 +24,7 @@ use importer::Scene;
 use mesher::ElementMesh;
 use solver::{EnergyBalance, Solution, SolveError, BANDS};
 use std::time::Instant;
-use transport::{HierarchicalOptions, HierarchicalTransport, LinkError, Transport};
+use transport::{HierarchicalOptions, HierarchicalTransport, LinkError, LinkProgress, Transport};
 
 /// Why a bake failed. [`BakeError::is_input`] tells bad input (exit 1) from internal errors.
 #[derive(Debug, thiserror::Error)]
@@ -52,7 +52,8 @@ impl BakeError {
 
 /// Progress of the long stages, for a progress bar; called from any thread.
 pub trait Progress: Sync {
-    /// A stage of `total` steps (rows, polygons, iterations) begins.
+    /// A stage of `total` steps (rows, polygons, iterations) begins; 0 when the number of
+    /// steps is not known in advance.
     fn start(&self, stage: &str, total: u64);
     /// `steps` more steps are done.
     fn advance(&self, steps: u64);
@@ -152,7 +153,7 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     // The cost first, from the element count alone: a request too large for this machine is
     // refused before anything is allocated.
     let planned = mesher::element_count(&scene.polygons, settings.subdivision)?;
-    let transport = choose_transport(settings, usize::try_from(planned).unwrap_or(usize::MAX));
+    let mut transport = choose_transport(settings, usize::try_from(planned).unwrap_or(usize::MAX));
     let solve = settings.solve(transport.kind);
     check_memory(planned, transport.kind, solve, scene_bands(scene))?;
     let mesh = mesher::mesh(&scene.polygons, settings.subdivision)?;
@@ -196,119 +197,158 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     if !scene.lights.is_empty() {
         stage("direct_light", &mut lap);
     }
-    let (solution, irradiance, energy, counts, effects) = match transport.kind {
-        TransportKind::Hierarchical => {
-            let max_links = available_memory().map_or(u64::MAX, |bytes| {
-                bytes / transport::hierarchical::BYTES_PER_LINK
-            });
-            let options = HierarchicalOptions {
-                link_tolerance: settings.link_tolerance,
-                samples: settings.link_samples,
-                estimator: settings.estimator,
-                contour: settings.contour,
-                passes: LINK_PASSES,
-                max_links,
-            };
-            progress.start("links", scene.polygons.len() as u64);
-            let built = HierarchicalTransport::build(
-                &scene.polygons,
-                &mesh,
-                &occluders,
-                &rho,
-                &source,
-                &options,
-                &|k| progress.advance(k),
-            );
-            progress.finish();
-            let h = built.map_err(|e| match e {
-                LinkError::Solve(e) => BakeError::Solve(e),
-                e => BakeError::TooLarge(e.to_string()),
-            })?;
-            stage("links", &mut lap);
-            let s = h.stats();
-            let counts = Counts {
-                // Integrated node pairs (the kept links); screened pairs are in the stats.
-                pairs_evaluated: s.by_method.iter().sum(),
-                pairs_tested: s.pairs_tested,
-                pairs_occludable: s.pairs_occludable,
-                rays_cast: s.rays_cast,
-                kernel_evaluations: s.kernel_evaluations,
-                pairs_contour: s.by_method[0],
-                pairs_point_polygon: s.by_method[1],
-                pairs_point_point: s.by_method[2],
-                links: s.links,
-                nodes: s.nodes,
-                passes: s.passes,
-            };
-            let effects = visibility::Effects {
-                occlusion: s.pairs_occludable > 0,
-                reason: if s.pairs_occludable > 0 {
-                    format!(
-                        "{} of the {} node pairs tested may be partly hidden by another \
-                         polygon: shadow rays were cast for them",
-                        s.pairs_occludable, s.pairs_tested
-                    )
-                } else {
-                    format!(
-                        "no polygon can come between any of the {} node pairs tested: no rays \
-                         are cast",
-                        s.pairs_tested
-                    )
-                },
-            };
-            let solution = solve_with(&h, solve, &rho, &source)?;
-            stage("solve", &mut lap);
-            let (irradiance, energy) =
-                finish(&h, &mesh, &rho, &emission, &external, &solution, settings)?;
-            (solution, irradiance, energy, counts, effects)
-        }
-        _ => {
-            // Dense: every element pair, exact (or within the estimator's tolerance).
-            check_memory(n as u64, TransportKind::Dense, solve, distinct_bands(&rho))?;
-            // The occlusion pre-pass (polygon pairs × candidate occluders) can take seconds.
-            progress.start("occlusion", occluders.len() as u64);
-            let occludable = occluders.occludable_pairs_with_progress(&|k| progress.advance(k));
-            progress.finish();
-            let effects = occludable.effects();
-            stage("occludable_pairs", &mut lap);
-            let mut form_factors =
-                FormFactors::new(&mesh, settings.contour).with_estimator(settings.estimator);
-            if effects.occlusion {
-                form_factors = form_factors.with_occlusion(Occlusion {
-                    occluders: &occluders,
-                    pairs: &occludable,
-                    samples: settings.visibility_samples,
+    // Nothing emits and no surface reflects a light's direct light: b = 0 is the exact
+    // solution, and no transport needs building (a large scene without emitters would
+    // otherwise build its whole matrix or hierarchy to find zeros).
+    let dark = source.iter().all(|s| s.iter().all(|&v| v == 0.0));
+    let (solution, irradiance, energy, counts, effects) = if dark {
+        transport.reason = format!(
+            "{}; not built: nothing emits or reflects direct light, so b = 0 exactly",
+            transport.reason
+        );
+        let solution = Solution {
+            b: vec![[0.0; BANDS]; n],
+            residual: [0.0; BANDS],
+            residual_relative: [false; BANDS],
+            factorizations: 0,
+            condition: [None; BANDS],
+            iterations: [0; BANDS],
+        };
+        let (irradiance, energy) = finish(
+            &NoTransport(n),
+            &mesh,
+            &rho,
+            &emission,
+            &external,
+            &solution,
+            settings,
+        )?;
+        let effects = visibility::Effects {
+            occlusion: false,
+            reason: "no light to transport: no shadow rays".into(),
+        };
+        (solution, irradiance, energy, Counts::default(), effects)
+    } else {
+        match transport.kind {
+            TransportKind::Hierarchical => {
+                let max_links = available_memory().map_or(u64::MAX, |bytes| {
+                    bytes / transport::hierarchical::BYTES_PER_LINK
                 });
+                let options = HierarchicalOptions {
+                    link_tolerance: settings.link_tolerance,
+                    samples: settings.link_samples,
+                    estimator: settings.estimator,
+                    contour: settings.contour,
+                    passes: LINK_PASSES,
+                    max_links,
+                };
+                progress.start("links", scene.polygons.len() as u64);
+                let built = HierarchicalTransport::build(
+                    &scene.polygons,
+                    &mesh,
+                    &occluders,
+                    &rho,
+                    &source,
+                    &options,
+                    &|step| match step {
+                        LinkProgress::Polygons(k) | LinkProgress::Links(k) => progress.advance(k),
+                        LinkProgress::Pass { pass, links } => {
+                            progress.finish();
+                            progress.start(&format!("links pass {pass}"), links);
+                        }
+                    },
+                );
+                progress.finish();
+                let h = built.map_err(|e| match e {
+                    LinkError::Solve(e) => BakeError::Solve(e),
+                    e => BakeError::TooLarge(e.to_string()),
+                })?;
+                stage("links", &mut lap);
+                let s = h.stats();
+                let counts = Counts {
+                    // Integrated node pairs (the kept links); screened pairs are in the stats.
+                    pairs_evaluated: s.by_method.iter().sum(),
+                    pairs_tested: s.pairs_tested,
+                    pairs_occludable: s.pairs_occludable,
+                    rays_cast: s.rays_cast,
+                    kernel_evaluations: s.kernel_evaluations,
+                    pairs_contour: s.by_method[0],
+                    pairs_point_polygon: s.by_method[1],
+                    pairs_point_point: s.by_method[2],
+                    links: s.links,
+                    nodes: s.nodes,
+                    passes: s.passes,
+                };
+                let effects = visibility::Effects {
+                    occlusion: s.pairs_occludable > 0,
+                    reason: if s.pairs_occludable > 0 {
+                        format!(
+                            "{} of the {} node pairs tested may be partly hidden by another \
+                         polygon: shadow rays were cast for them",
+                            s.pairs_occludable, s.pairs_tested
+                        )
+                    } else {
+                        format!(
+                            "no polygon can come between any of the {} node pairs tested: no rays \
+                         are cast",
+                            s.pairs_tested
+                        )
+                    },
+                };
+                let solution = solve_with(&h, solve, &rho, &source, progress)?;
+                stage("solve", &mut lap);
+                let (irradiance, energy) =
+                    finish(&h, &mesh, &rho, &emission, &external, &solution, settings)?;
+                (solution, irradiance, energy, counts, effects)
             }
-            progress.start("form factors", n as u64);
-            let matrix = form_factors.dense_with_progress(&|rows| progress.advance(rows));
-            progress.finish();
-            stage("form_factors", &mut lap);
-            let stats = matrix.stats;
-            let counts = Counts {
-                pairs_evaluated: stats.pairs_integrated,
-                pairs_tested: stats.visibility.pairs_tested,
-                pairs_occludable: stats.visibility.pairs_occludable,
-                rays_cast: stats.visibility.rays_cast,
-                kernel_evaluations: stats.evaluations,
-                pairs_contour: stats.pairs_by_method.contour,
-                pairs_point_polygon: stats.pairs_by_method.point_polygon,
-                pairs_point_point: stats.pairs_by_method.point_point,
-                ..Counts::default()
-            };
-            let f = solver::DenseMatrix::new(n, &matrix.data)
-                .map_err(BakeError::Internal)?
-                .with_accuracy(settings.estimator.row_sum_accuracy());
-            let solution = match solve {
-                Solve::Direct => {
-                    solver::solve_direct(&f, &rho, &source).map_err(BakeError::Solve)?
+            _ => {
+                // Dense: every element pair, exact (or within the estimator's tolerance).
+                check_memory(n as u64, TransportKind::Dense, solve, distinct_bands(&rho))?;
+                // The occlusion pre-pass (polygon pairs × candidate occluders) can take seconds.
+                progress.start("occlusion", occluders.len() as u64);
+                let occludable = occluders.occludable_pairs_with_progress(&|k| progress.advance(k));
+                progress.finish();
+                let effects = occludable.effects();
+                stage("occludable_pairs", &mut lap);
+                let mut form_factors =
+                    FormFactors::new(&mesh, settings.contour).with_estimator(settings.estimator);
+                if effects.occlusion {
+                    form_factors = form_factors.with_occlusion(Occlusion {
+                        occluders: &occluders,
+                        pairs: &occludable,
+                        samples: settings.visibility_samples,
+                    });
                 }
-                _ => solve_with(&f, solve, &rho, &source)?,
-            };
-            stage("solve", &mut lap);
-            let (irradiance, energy) =
-                finish(&f, &mesh, &rho, &emission, &external, &solution, settings)?;
-            (solution, irradiance, energy, counts, effects)
+                progress.start("form factors", n as u64);
+                let matrix = form_factors.dense_with_progress(&|rows| progress.advance(rows));
+                progress.finish();
+                stage("form_factors", &mut lap);
+                let stats = matrix.stats;
+                let counts = Counts {
+                    pairs_evaluated: stats.pairs_integrated,
+                    pairs_tested: stats.visibility.pairs_tested,
+                    pairs_occludable: stats.visibility.pairs_occludable,
+                    rays_cast: stats.visibility.rays_cast,
+                    kernel_evaluations: stats.evaluations,
+                    pairs_contour: stats.pairs_by_method.contour,
+                    pairs_point_polygon: stats.pairs_by_method.point_polygon,
+                    pairs_point_point: stats.pairs_by_method.point_point,
+                    ..Counts::default()
+                };
+                let f = solver::DenseMatrix::new(n, &matrix.data)
+                    .map_err(BakeError::Internal)?
+                    .with_accuracy(settings.estimator.row_sum_accuracy());
+                let solution = match solve {
+                    Solve::Direct => {
+                        solver::solve_direct(&f, &rho, &source).map_err(BakeError::Solve)?
+                    }
+                    _ => solve_with(&f, solve, &rho, &source, progress)?,
+                };
+                stage("solve", &mut lap);
+                let (irradiance, energy) =
+                    finish(&f, &mesh, &rho, &emission, &external, &solution, settings)?;
+                (solution, irradiance, energy, counts, effects)
+            }
         }
     };
     stage("energy", &mut lap);
@@ -337,17 +377,73 @@ fn solve_with<O: solver::Operator>(
     solve: Solve,
     rho: &[[f64; BANDS]],
     emission: &[[f64; BANDS]],
+    progress: &dyn Progress,
 ) -> Result<Solution, BakeError> {
-    match solve {
-        Solve::Iterative(options) => solver::solve_iterative(op, rho, emission, &options),
-        Solve::Bounces(k) => solver::solve_bounces(op, rho, emission, k),
+    // The bar counts operator applications; how many GMRES needs is not known before it
+    // converges (total 0: open-ended).
+    let counted = Counted { op, progress };
+    let result = match solve {
+        Solve::Iterative(options) => {
+            progress.start("solve", 0);
+            solver::solve_iterative(&counted, rho, emission, &options)
+        }
+        Solve::Bounces(k) => {
+            progress.start("solve", u64::from(k));
+            solver::solve_bounces(&counted, rho, emission, k)
+        }
         Solve::Direct => {
             return Err(BakeError::Options(
                 "the direct solver needs the dense transport".into(),
             ))
         }
+    };
+    progress.finish();
+    result.map_err(BakeError::Solve)
+}
+
+/// The transport of a scene with no light in it: `F b` for `b = 0` is 0 whatever `F` is.
+struct NoTransport(usize);
+
+impl solver::Operator for NoTransport {
+    fn n(&self) -> usize {
+        self.0
     }
-    .map_err(BakeError::Solve)
+
+    fn apply(&self, _: &[f64], y: &mut [f64]) {
+        y.fill(0.0);
+    }
+}
+
+impl Transport for NoTransport {}
+
+/// An operator that tells `progress` of every application and is otherwise `op` itself.
+struct Counted<'a, O> {
+    op: &'a O,
+    progress: &'a dyn Progress,
+}
+
+impl<O: solver::Operator> solver::Operator for Counted<'_, O> {
+    fn n(&self) -> usize {
+        self.op.n()
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        self.op.apply(x, y);
+        self.progress.advance(1);
+    }
+
+    fn apply_bands(&self, x: &[[f64; BANDS]], y: &mut [[f64; BANDS]]) {
+        self.op.apply_bands(x, y);
+        self.progress.advance(1);
+    }
+
+    fn accuracy(&self) -> f64 {
+        self.op.accuracy()
+    }
+
+    fn rows_bounded(&self) -> bool {
+        self.op.rows_bounded()
+    }
 }
 
 /// Linking passes of the hierarchical transport (the first with B = e).

@@ -96,6 +96,17 @@ impl Default for HierarchicalOptions {
     }
 }
 
+/// How far [`HierarchicalTransport::build`] is, for a progress bar.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LinkProgress {
+    /// Polygons of the first pass finished.
+    Polygons(u64),
+    /// Refinement pass `pass` (2, 3, …) begins over `links` kept links.
+    Pass { pass: u32, links: u64 },
+    /// Kept links of the current refinement pass re-examined.
+    Links(u64),
+}
+
 /// What building the hierarchy did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct HierarchicalStats {
@@ -238,7 +249,7 @@ struct Linker<'a> {
 impl HierarchicalTransport {
     /// Builds the trees over `mesh` (made from `polygons`), links every polygon pair by BF
     /// refinement in passes (coarse GMRES solves in between), and assembles the operator.
-    /// `rho` and `e` are per element; `progress(k)` is called as polygons of the first pass
+    /// `rho` and `e` are per element; `progress` hears as polygons of the first pass
     /// finish.
     pub fn build(
         polygons: &[Polygon],
@@ -247,7 +258,7 @@ impl HierarchicalTransport {
         rho: &[[f64; BANDS]],
         e: &[[f64; BANDS]],
         options: &HierarchicalOptions,
-        progress: &(dyn Fn(u64) + Sync),
+        progress: &(dyn Fn(LinkProgress) + Sync),
     ) -> Result<HierarchicalTransport, LinkError> {
         let n = mesh.elements.len();
         let (nodes, children, roots) = build_trees(polygons, mesh)?;
@@ -328,9 +339,22 @@ impl HierarchicalTransport {
                 epsilon: options.link_tolerance * mean,
                 ..base
             };
+            progress(LinkProgress::Pass {
+                pass: passes + 1,
+                links: links.len() as u64,
+            });
+            // In chunks, so that progress is told once per chunk, not per link.
             let refined: Vec<Option<Vec<Link>>> = links
-                .par_iter()
-                .map(|link| linker.refine_kept(link))
+                .par_chunks(4096)
+                .map(|chunk| {
+                    let out: Vec<Option<Vec<Link>>> =
+                        chunk.iter().map(|link| linker.refine_kept(link)).collect();
+                    progress(LinkProgress::Links(chunk.len() as u64));
+                    out
+                })
+                .collect::<Vec<_>>()
+                .into_iter()
+                .flatten()
                 .collect();
             passes += 1;
             if refined.iter().all(Option::is_none) {
@@ -762,7 +786,7 @@ impl Linker<'_> {
 fn initial_links(
     linker: &Linker,
     roots: &[u32],
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &(dyn Fn(LinkProgress) + Sync),
     limit: u64,
 ) -> Option<Vec<Link>> {
     let rows: Vec<Vec<Link>> = (0..roots.len())
@@ -772,7 +796,7 @@ fn initial_links(
             for q in p + 1..roots.len() {
                 linker.link(roots[p], roots[q], true, &mut row);
             }
-            progress(1);
+            progress(LinkProgress::Polygons(1));
             row
         })
         .collect();

@@ -17,7 +17,9 @@
 
 pub mod hierarchical;
 
-pub use hierarchical::{HierarchicalOptions, HierarchicalStats, HierarchicalTransport, LinkError};
+pub use hierarchical::{
+    HierarchicalOptions, HierarchicalStats, HierarchicalTransport, LinkError, LinkProgress,
+};
 use solver::{Operator, BANDS};
 
 /// A scene's light-transport operator.
