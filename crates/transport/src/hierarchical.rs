@@ -79,7 +79,7 @@ pub struct HierarchicalOptions {
     pub max_links: u64,
 }
 
-/// Memory per kept link: the link itself while refining (80 bytes) and two operator entries
+/// Memory per kept link: the link itself while refining (72 bytes) and two operator entries
 /// (source index, coefficient and two gradients, 36 bytes each, plus offsets).
 pub const BYTES_PER_LINK: u64 = 160;
 
@@ -167,16 +167,16 @@ struct Link {
     q: u32,
     /// `A_p F_pq`, visible part.
     g: f64,
-    /// Per receiver (p, then q): `G · fit + G₀ · uncertainty`, the error factor of the BF
-    /// criterion.
-    k: [f64; 2],
+    /// `G · fit + G₀ · uncertainty`: the error factor of the BF criterion (the same for both
+    /// receivers).
+    k: f64,
     /// Whether some polygon can come between p and q (children must test again).
     occludable: bool,
-    /// Unoccluded `A_p F_pq` and, per receiver, the relative variation the link cannot
-    /// represent (its receiver's linear-fit residual plus its source's spread), for
-    /// recomputing `g` and `k` once the shadow rays are cast.
+    /// Unoccluded `A_p F_pq` and the relative variation the link cannot represent (the
+    /// linear-fit residuals over both nodes), for recomputing `g` and `k` once the shadow rays
+    /// are cast.
     g0: f64,
-    fit: [f32; 2],
+    fit: f32,
     /// Per receiver (p, then q): the gradient of the unoccluded point-to-node kernel over it
     /// (world units, in its plane), the linear part of what the link delivers.
     gradient: [[f32; 3]; 2],
@@ -680,9 +680,7 @@ impl Linker<'_> {
         } else {
             0.0
         };
-        link.k = link
-            .fit
-            .map(|fit| link.g * f64::from(fit) + link.g0 * uncertainty);
+        link.k = link.g * f64::from(link.fit) + link.g0 * uncertainty;
         link.final_value = true;
         link
     }
@@ -695,12 +693,12 @@ impl Linker<'_> {
         Some(out)
     }
 
-    /// The BF error of a link between p and q with error factors `k` (for receiver p, then
-    /// q): the larger over its two receivers of `ρ_r B_s k_r / A_r`.
-    fn error(&self, p: u32, q: u32, k: [f64; 2]) -> f64 {
+    /// The BF error of a link between p and q with error factor `k`: the larger over its two
+    /// receivers of `ρ_r B_s k / A_r`.
+    fn error(&self, p: u32, q: u32, k: f64) -> f64 {
         let (p, q) = (p as usize, q as usize);
-        (self.rho[p] * self.b[q] * k[0] / self.nodes[p].surface.area)
-            .max(self.rho[q] * self.b[p] * k[1] / self.nodes[q].surface.area)
+        (self.rho[p] * self.b[q] * k / self.nodes[p].surface.area)
+            .max(self.rho[q] * self.b[p] * k / self.nodes[q].surface.area)
     }
 
     /// Whether both receivers' error is within ε.
@@ -745,12 +743,12 @@ impl Linker<'_> {
         // A pair that would be kept even if it were fully uncertain gets rays without the
         // occludability test: the test would only save its few rays, and far pairs (most of
         // the polygon pairs of a large scene) are nearly always occludable.
-        // Per receiver: what a linear model of the kernel misses over the receiver and over
+        // For both receivers: what a linear model of the kernel misses over the receiver and over
         // the source (B may vary over the source as much as B itself: the conservative
         // assumption).
         let [sp, sq] = screen.sides;
-        let fit = [sp.residual + sq.residual; 2];
-        let worst = self.error(p, q, fit.map(|f| screen.rough * (f + 1.0)));
+        let fit = sp.residual + sq.residual;
+        let worst = self.error(p, q, screen.rough * (fit + 1.0));
         if parent_occludable && worst <= self.epsilon {
             occludable = true;
         } else if parent_occludable {
@@ -769,11 +767,11 @@ impl Linker<'_> {
             p,
             q,
             g,
-            k: fit.map(|f| g * (f + uncertainty)),
+            k: g * (fit + uncertainty),
             occludable,
             clipped,
             g0: g,
-            fit: fit.map(|f| f as f32),
+            fit: fit as f32,
             gradient,
             final_value: false,
         })
