@@ -270,6 +270,9 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         report.counts.links = counts.links;
         report.counts.nodes = counts.nodes;
         report.counts.refinement_passes = counts.passes;
+        report.counts.blocked_links = counts.blocked_links;
+        report.counts.polygon_pairs = counts.polygon_pairs;
+        report.counts.cluster_pairs_dropped = counts.clusters_dropped;
         report.effects = Effects {
             occlusion: bake.effects.occlusion,
             occlusion_reason: bake.effects.reason.clone(),

@@ -88,6 +88,11 @@ pub struct Counts {
     pub links: u64,
     pub nodes: u64,
     pub passes: u32,
+    /// Hierarchical transport: links with every ray blocked, polygon pairs linked, cluster
+    /// pairs dropped.
+    pub blocked_links: u64,
+    pub polygon_pairs: u64,
+    pub clusters_dropped: u64,
 }
 
 /// The transport a bake used and why.
@@ -278,6 +283,9 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                     links: s.links,
                     nodes: s.nodes,
                     passes: s.passes,
+                    blocked_links: s.blocked_links,
+                    polygon_pairs: s.polygon_pairs,
+                    clusters_dropped: s.clusters_dropped,
                 };
                 let effects = visibility::Effects {
                     occlusion: s.pairs_occludable > 0,

@@ -102,6 +102,16 @@ pub struct Counts {
     /// Hierarchical transport: link refinement passes (each followed by a solve).
     #[serde(default)]
     pub refinement_passes: u32,
+    /// Hierarchical transport: links whose every shadow ray was blocked (kept while linking,
+    /// carrying nothing).
+    #[serde(default)]
+    pub blocked_links: u64,
+    /// Hierarchical transport: polygon pairs the cluster descent left for linking, and the
+    /// cluster pairs it dropped because every shadow ray between them was blocked.
+    #[serde(default)]
+    pub polygon_pairs: u64,
+    #[serde(default)]
+    pub cluster_pairs_dropped: u64,
 }
 
 /// The light transport a bake used (`dense` or `hierarchical`) and why.

@@ -78,6 +78,9 @@ fn report_holds_the_scene_and_results() {
             links: 0,
             nodes: 0,
             refinement_passes: 0,
+            blocked_links: 0,
+            polygon_pairs: 0,
+            cluster_pairs_dropped: 0,
         }
     );
     assert_eq!(report.warnings, fixture.scene.warnings);

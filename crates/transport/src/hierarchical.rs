@@ -9,9 +9,12 @@
 //! the two node polygons, times a visible fraction from shadow rays where some polygon can come
 //! between them), so the operator is exactly reciprocal and conserves energy.
 //!
-//! **Linking (BF refinement, HSA91 §4).** Linking starts from every pair of polygons
-//! ([`HierarchicalTransport::build`]; part 2 of the plan replaces this O(P²) step with
-//! clusters). A link is kept when the estimated error of its contribution to its receiver's
+//! **Linking (BF refinement, HSA91 §4).** Linking starts from the polygon pairs that a descent
+//! of a volume hierarchy over the polygons (`clusters`) leaves: a pair of disjoint clusters
+//! whose sampled shadow rays are all blocked, and whose missed light is within the tolerance,
+//! is dropped (re-tested in later passes with their radiosities), so sealed-off rooms cost no
+//! polygon pairs; light-carrying links still join two polygon trees (cluster links are part 2
+//! of the plan). A link is kept when the estimated error of its contribution to its receiver's
 //! radiosity is at most `ε = link_tolerance × B̄` (B̄ the scene's area-weighted mean radiosity):
 //!
 //! ```text
@@ -26,6 +29,10 @@
 //! may cross the pair, whatever its few shadow rays saw) or when a node straddles the other's
 //! plane (only its front part receives light, but a link spreads it over all of the node), 0
 //! otherwise. The source's term assumes B varies over it as much as B itself (conservative).
+//! An occludable pair that only this uncertainty would refine gets its shadow rays at once: if
+//! every one of its n rays is blocked, it is kept as a *blocked* link (value 0, uncertainty
+//! `3 / n` by the rule of three) instead of being refined down to elements; blocked links stay
+//! in the link list (a later pass may refine them) but not in the operator.
 //! Otherwise the larger node of the pair (by area) is split and its children are linked to the
 //! other node recursively; leaf–leaf pairs are always kept. The integrator's own uncertainty
 //! plays no part: the estimators are accurate to their tolerance.
@@ -60,6 +67,8 @@ use rayon::prelude::*;
 use solver::{IterativeOptions, Operator, SolveError, BANDS};
 use std::sync::atomic::{AtomicU64, Ordering};
 use visibility::{pair_seed, Patch};
+
+use crate::clusters::{self, Clusters, Weights};
 
 /// Settings of [`HierarchicalTransport::build`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -112,8 +121,16 @@ pub enum LinkProgress {
 pub struct HierarchicalStats {
     /// Nodes of all trees, leaves (= elements) included.
     pub nodes: u64,
-    /// Links kept.
+    /// Links kept that carry light (in the operator).
     pub links: u64,
+    /// Links kept whose every shadow ray was blocked: held while linking (a later pass may
+    /// refine them), not in the operator.
+    pub blocked_links: u64,
+    /// Cluster pairs (of several polygons) dropped in the first pass because every shadow ray
+    /// between them was blocked (`clusters`), counted again when a later pass re-tests one.
+    pub clusters_dropped: u64,
+    /// Polygon pairs the cluster descent left for linking (of P (P − 1) / 2).
+    pub polygon_pairs: u64,
     /// Node pairs screened (clipped, kernel variation and a rough value), kept or refined;
     /// only kept links are integrated by the estimator (`by_method`).
     pub pairs_evaluated: u64,
@@ -160,6 +177,14 @@ struct Node {
 /// Links whose whole unoccluded error contribution is below this × ε get one shadow ray.
 const FAINT: f64 = 1.0 / 16.0;
 
+/// The uncertainty of the visible fraction of a pair whose every one of `rays` shadow rays
+/// was blocked: the open share the rays can have missed, by the "rule of three" (with n rays
+/// all blocked, a visible share above 3/n would have been seen with 95% probability; the rays
+/// are stratified, so the bound is conservative).
+fn blocked_uncertainty(rays: u32) -> f64 {
+    (3.0 / f64::from(rays.max(1))).min(1.0)
+}
+
 /// A kept link between nodes p and q.
 #[derive(Clone, Copy, Debug)]
 struct Link {
@@ -181,6 +206,9 @@ struct Link {
     /// (world units, in its plane), the linear part of what the link delivers.
     gradient: [[f32; 3]; 2],
     clipped: bool,
+    /// Whether every shadow ray of the pair was blocked when it was screened (its visible
+    /// fraction is 0 and no more rays are cast for it).
+    blocked: bool,
     /// Whether `g` is the estimator's value with its visible fraction (only links that are
     /// kept are integrated and get rays; until then `g0` is the screen's rough value).
     final_value: bool,
@@ -231,6 +259,8 @@ struct Counters {
     rays_cast: AtomicU64,
     kernel_evaluations: AtomicU64,
     by_method: [AtomicU64; 3],
+    clusters_dropped: AtomicU64,
+    polygon_pairs: AtomicU64,
 }
 
 /// What the linking of one pass needs.
@@ -305,7 +335,12 @@ impl HierarchicalTransport {
             epsilon: options.link_tolerance * mean_b,
             ..base
         };
-        let mut links = initial_links(&linker, &roots, progress, limit).ok_or_else(too_many)?;
+        let culling = Culling::new(&nodes, &roots);
+        let first = culling.initial(&linker, progress);
+        if first.links.len() as u64 > limit {
+            return Err(too_many());
+        }
+        let (mut links, mut dropped) = (first.links, first.dropped);
         let total_area: f64 = mesh.elements.iter().map(|el| el.area).sum();
         let mut passes = 1;
         let accuracy = options.estimator.row_sum_accuracy();
@@ -356,11 +391,17 @@ impl HierarchicalTransport {
                 .into_iter()
                 .flatten()
                 .collect();
+            let revisited = culling.revisit(&linker, &dropped);
+            dropped = revisited.dropped;
             passes += 1;
-            if refined.iter().all(Option::is_none) {
+            if refined.iter().all(Option::is_none) && revisited.links.is_empty() {
                 break;
             }
-            let total: usize = refined.iter().map(|r| r.as_ref().map_or(1, Vec::len)).sum();
+            let total: usize = refined
+                .iter()
+                .map(|r| r.as_ref().map_or(1, Vec::len))
+                .sum::<usize>()
+                + revisited.links.len();
             if total as u64 > limit {
                 return Err(too_many());
             }
@@ -371,11 +412,15 @@ impl HierarchicalTransport {
                     None => next.push(*link),
                 }
             }
+            next.extend(revisited.links);
             links = next;
         }
         let stats = HierarchicalStats {
             nodes: nodes.len() as u64,
-            links: links.len() as u64,
+            links: links.iter().filter(|l| l.g != 0.0).count() as u64,
+            blocked_links: links.iter().filter(|l| l.g == 0.0).count() as u64,
+            clusters_dropped: counters.clusters_dropped.load(Ordering::Relaxed),
+            polygon_pairs: counters.polygon_pairs.load(Ordering::Relaxed),
             pairs_evaluated: counters.pairs_evaluated.load(Ordering::Relaxed),
             pairs_tested: counters.pairs_tested.load(Ordering::Relaxed),
             pairs_occludable: counters.pairs_occludable.load(Ordering::Relaxed),
@@ -636,10 +681,16 @@ impl Linker<'_> {
                 Method::PointPoint => 2,
             };
             c.by_method[method].fetch_add(1, Ordering::Relaxed);
+            if link.blocked && link.g0 > 0.0 {
+                // k was the screen's rough value times the rays' uncertainty.
+                link.k *= pair.value / link.g0;
+            }
             link.g0 = pair.value;
         }
         let mut fraction = 1.0;
-        if link.occludable {
+        if link.blocked {
+            fraction = 0.0;
+        } else if link.occludable {
             let importance = (self.rho[link.p as usize] * self.b[link.q as usize]
                 / np.surface.area)
                 .max(self.rho[link.q as usize] * self.b[link.p as usize] / nq.surface.area)
@@ -675,12 +726,14 @@ impl Linker<'_> {
         link.g = link.g0 * fraction;
         // Occludable: a shadow boundary may cross the pair even where every ray of the
         // sample arrived (a few rays per node miss small occluders).
-        let uncertainty = if link.occludable || link.clipped {
-            1.0
-        } else {
-            0.0
-        };
-        link.k = link.g * f64::from(link.fit) + link.g0 * uncertainty;
+        if !link.blocked {
+            let uncertainty = if link.occludable || link.clipped {
+                1.0
+            } else {
+                0.0
+            };
+            link.k = link.g * f64::from(link.fit) + link.g0 * uncertainty;
+        }
         link.final_value = true;
         link
     }
@@ -763,50 +816,290 @@ impl Linker<'_> {
         let uncertainty = if clipped || occludable { 1.0 } else { 0.0 };
         let g = screen.rough;
         let gradient = [sp.gradient, sq.gradient].map(|v| v.as_vec3().to_array());
-        Some(Link {
+        let mut link = Link {
             p,
             q,
             g,
             k: g * (fit + uncertainty),
             occludable,
             clipped,
+            blocked: false,
             g0: g,
             fit: fit as f32,
             gradient,
             final_value: false,
-        })
+        };
+        // A pair that the uncertainty of its visibility alone would refine gets its shadow
+        // rays now: when every ray is blocked (two rooms with a wall between them) its visible
+        // fraction is 0 and what the rays can have missed is small, so it is kept as a
+        // blocked link instead of being refined down to elements.
+        if occludable
+            && !clipped
+            && !self.acceptable(&link)
+            && self.error(p, q, g * fit) <= self.epsilon
+        {
+            let v = self.occluders.visibility(
+                &patch(np),
+                &patch(nq),
+                self.options.samples,
+                pair_seed(p as usize, q as usize),
+            );
+            c.rays_cast.fetch_add(u64::from(v.rays), Ordering::Relaxed);
+            if v.fraction == 0.0 && v.rays > 0 {
+                link.blocked = true;
+                link.g = 0.0;
+                link.k = g * blocked_uncertainty(v.rays);
+            }
+        }
+        Some(link)
     }
 }
 
-/// The first pass's links, refined from every pair of polygon roots: O(P²) pairs, fine up to a
-/// few thousand polygons. The one step that clustering (part 2 of the walkthrough plan) replaces
-/// by links between clusters of polygons. `None` when more than `limit` links are kept.
-fn initial_links(
-    linker: &Linker,
-    roots: &[u32],
-    progress: &(dyn Fn(LinkProgress) + Sync),
-    limit: u64,
-) -> Option<Vec<Link>> {
-    let rows: Vec<Vec<Link>> = (0..roots.len())
-        .into_par_iter()
-        .map(|p| {
-            let mut row = Vec::new();
-            for q in p + 1..roots.len() {
-                linker.link(roots[p], roots[q], true, &mut row);
+/// The cluster tree over the polygon roots and what its descent needs per pass.
+struct Culling<'a> {
+    clusters: Clusters,
+    roots: &'a [u32],
+    /// Per polygon: its root's surface and its index among the occluders.
+    surfaces: Vec<Surface>,
+    polygon: Vec<u32>,
+}
+
+/// A cluster pair dropped because every shadow ray between it was blocked, with the rays it
+/// was tested with (into `a`, into `b`).
+#[derive(Clone, Copy, Debug)]
+struct Dropped {
+    a: u32,
+    b: u32,
+    rays: [u32; 2],
+}
+
+/// What a descent produced.
+#[derive(Default)]
+struct Descent {
+    links: Vec<Link>,
+    dropped: Vec<Dropped>,
+}
+
+impl Descent {
+    fn append(&mut self, mut other: Descent) {
+        self.links.append(&mut other.links);
+        self.dropped.append(&mut other.dropped);
+    }
+}
+
+/// Runs `first` then `second` into `out`: in parallel (each into its own part, appended in
+/// order, so the result does not depend on the thread count) when `parallel`.
+fn both<F, G>(parallel: bool, out: &mut Descent, first: F, second: G)
+where
+    F: FnOnce(&mut Descent) + Send,
+    G: FnOnce(&mut Descent) + Send,
+{
+    if parallel {
+        let (x, y) = rayon::join(
+            || {
+                let mut o = Descent::default();
+                first(&mut o);
+                o
+            },
+            || {
+                let mut o = Descent::default();
+                second(&mut o);
+                o
+            },
+        );
+        out.append(x);
+        out.append(y);
+    } else {
+        first(out);
+        second(out);
+    }
+}
+
+/// Cluster pairs with more polygons than this (product of the two counts) are descended in
+/// parallel.
+const PARALLEL_PAIRS: u64 = 4096;
+
+impl<'a> Culling<'a> {
+    fn new(nodes: &[Node], roots: &'a [u32]) -> Culling<'a> {
+        let surfaces: Vec<Surface> = roots.iter().map(|&r| nodes[r as usize].surface).collect();
+        let polygon = roots.iter().map(|&r| nodes[r as usize].polygon).collect();
+        Culling {
+            clusters: Clusters::new(&surfaces),
+            roots,
+            surfaces,
+            polygon,
+        }
+    }
+
+    fn weights(&self, linker: &Linker) -> Weights {
+        let b: Vec<f64> = self.roots.iter().map(|&r| linker.b[r as usize]).collect();
+        let rho: Vec<f64> = self.roots.iter().map(|&r| linker.rho[r as usize]).collect();
+        Weights::new(&self.clusters, &self.surfaces, &b, &rho)
+    }
+
+    /// Whether every ray of the pair (`rays` per direction) is blocked.
+    fn blocked(&self, linker: &Linker, weights: &Weights, a: u32, b: u32, rays: [u32; 2]) -> bool {
+        for (k, (receiver, source)) in [(a, b), (b, a)].into_iter().enumerate() {
+            if rays[k] == 0 {
+                continue;
             }
-            progress(LinkProgress::Polygons(1));
-            row
-        })
-        .collect();
-    let total: usize = rows.iter().map(Vec::len).sum();
-    if total as u64 > limit {
-        return None;
+            let (blocked, cast) = clusters::all_blocked(
+                &self.clusters,
+                weights,
+                &self.surfaces,
+                &self.polygon,
+                linker.occluders,
+                receiver,
+                source,
+                rays[k],
+                k as u64,
+            );
+            linker
+                .counters
+                .rays_cast
+                .fetch_add(u64::from(cast), Ordering::Relaxed);
+            if !blocked {
+                return false;
+            }
+        }
+        true
     }
-    let mut all = Vec::with_capacity(total);
-    for row in rows {
-        all.extend(row);
+
+    /// Links cluster `a` with cluster `b` (`a == b`: the cluster with itself) into `out`.
+    fn descend(
+        &self,
+        linker: &Linker,
+        weights: &Weights,
+        a: u32,
+        b: u32,
+        progress: &(dyn Fn(LinkProgress) + Sync),
+        out: &mut Descent,
+    ) {
+        let nodes = &self.clusters.nodes;
+        let (ca, cb) = (nodes[a as usize], nodes[b as usize]);
+        let large = u64::from(ca.count) * u64::from(cb.count) > PARALLEL_PAIRS;
+        if a == b {
+            let Some([l, r]) = ca.children else {
+                progress(LinkProgress::Polygons(1));
+                return;
+            };
+            both(
+                large,
+                out,
+                |o| {
+                    self.descend(linker, weights, l, l, progress, o);
+                    self.descend(linker, weights, r, r, progress, o);
+                },
+                |o| self.descend(linker, weights, l, r, progress, o),
+            );
+            return;
+        }
+        let Some((split, other)) = self.split(a, b) else {
+            // Two polygons: linked as HSA91 links them.
+            let order = &self.clusters.order;
+            let (p, q) = (order[ca.first as usize], order[cb.first as usize]);
+            let (p, q) = (p.min(q), p.max(q));
+            linker
+                .counters
+                .polygon_pairs
+                .fetch_add(1, Ordering::Relaxed);
+            linker.link(
+                self.roots[p as usize],
+                self.roots[q as usize],
+                true,
+                &mut out.links,
+            );
+            return;
+        };
+        let distance = clusters::box_distance(&ca, &cb);
+        if let Some(rays) = clusters::rays_needed(weights, a, b, distance, linker.epsilon) {
+            if self.blocked(linker, weights, a, b, rays) {
+                linker
+                    .counters
+                    .clusters_dropped
+                    .fetch_add(1, Ordering::Relaxed);
+                out.dropped.push(Dropped { a, b, rays });
+                return;
+            }
+        }
+        let [l, r] = split;
+        both(
+            large,
+            out,
+            |o| self.descend(linker, weights, l, other, progress, o),
+            |o| self.descend(linker, weights, r, other, progress, o),
+        );
     }
-    Some(all)
+
+    /// Which cluster of a disjoint pair to split (the one with the larger box, of those with
+    /// children) and the other; `None` for two single polygons.
+    fn split(&self, a: u32, b: u32) -> Option<([u32; 2], u32)> {
+        let (ca, cb) = (
+            &self.clusters.nodes[a as usize],
+            &self.clusters.nodes[b as usize],
+        );
+        match (ca.children, cb.children) {
+            (None, None) => None,
+            (Some(x), None) => Some((x, b)),
+            (None, Some(y)) => Some((y, a)),
+            (Some(x), Some(y)) => {
+                if (ca.hi - ca.lo).length_squared() >= (cb.hi - cb.lo).length_squared() {
+                    Some((x, b))
+                } else {
+                    Some((y, a))
+                }
+            }
+        }
+    }
+
+    /// The first pass: the root cluster with itself.
+    fn initial(&self, linker: &Linker, progress: &(dyn Fn(LinkProgress) + Sync)) -> Descent {
+        let mut out = Descent::default();
+        if !self.clusters.nodes.is_empty() {
+            let weights = self.weights(linker);
+            self.descend(linker, &weights, 0, 0, progress, &mut out);
+        }
+        out
+    }
+
+    /// A later pass: the dropped pairs whose missed light, with this pass's radiosities,
+    /// needs more rays than they were tested with are tested again and, if a ray arrives,
+    /// descended. Returns the pairs still dropped and the new links.
+    fn revisit(&self, linker: &Linker, dropped: &[Dropped]) -> Descent {
+        let weights = self.weights(linker);
+        let nodes = &self.clusters.nodes;
+        let none = |_: LinkProgress| {};
+        let parts: Vec<Descent> = dropped
+            .par_iter()
+            .map(|d| {
+                let (ca, cb) = (nodes[d.a as usize], nodes[d.b as usize]);
+                let distance = clusters::box_distance(&ca, &cb);
+                let mut out = Descent::default();
+                match clusters::rays_needed(&weights, d.a, d.b, distance, linker.epsilon) {
+                    Some(rays) if rays[0] <= d.rays[0] && rays[1] <= d.rays[1] => {
+                        out.dropped.push(*d);
+                    }
+                    Some(rays) if self.blocked(linker, &weights, d.a, d.b, rays) => {
+                        out.dropped.push(Dropped { rays, ..*d });
+                    }
+                    _ => {
+                        // Only pairs with a cluster of several polygons are dropped.
+                        if let Some((split, other)) = self.split(d.a, d.b) {
+                            for c in split {
+                                self.descend(linker, &weights, c, other, &none, &mut out);
+                            }
+                        }
+                    }
+                }
+                out
+            })
+            .collect();
+        let mut out = Descent::default();
+        for p in parts {
+            out.append(p);
+        }
+        out
+    }
 }
 
 fn patch(node: &Node) -> Patch {
@@ -841,7 +1134,10 @@ fn node_max(nodes: &[Node], children: &[u32], n: usize, values: &[[f64; BANDS]])
 fn assemble(nodes: &[Node], links: &[Link]) -> Entries {
     let total = nodes.len();
     let mut counts = vec![0u64; total + 1];
-    for l in links {
+    // Blocked links (every ray stopped) carry nothing: they stay in the link list, where a
+    // later pass may refine them, but not in the operator.
+    let links = || links.iter().filter(|l| l.g != 0.0);
+    for l in links() {
         counts[l.p as usize + 1] += 1;
         counts[l.q as usize + 1] += 1;
     }
@@ -854,7 +1150,7 @@ fn assemble(nodes: &[Node], links: &[Link]) -> Entries {
     let mut sources = vec![0u32; entries];
     let mut coefficients = vec![0.0f64; entries];
     let mut gradients = vec![[[0.0f32; 3]; 2]; entries];
-    for l in links {
+    for l in links() {
         // The gradient was fitted to the unoccluded kernel: scale it by the visible fraction.
         let visible = if l.g0 > 0.0 { (l.g / l.g0) as f32 } else { 0.0 };
         for (side, (r, s)) in [(l.p, l.q), (l.q, l.p)].into_iter().enumerate() {

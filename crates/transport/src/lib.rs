@@ -15,6 +15,7 @@
 //! between the implementations (the `bake` library does); it knows elements only through the
 //! mesher's grids, and form factors and visibility only through their crates' APIs.
 
+mod clusters;
 pub mod hierarchical;
 
 pub use hierarchical::{

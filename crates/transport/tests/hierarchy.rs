@@ -209,3 +209,71 @@ fn too_many_links_is_a_clear_refusal() {
     assert!(message.contains("more than 10 links"), "{message}");
     assert!(message.contains("--link-tolerance"), "{message}");
 }
+
+/// The six walls of a unit cube at `at`, seen from inside.
+fn sealed_box(at: DVec3) -> Vec<Polygon> {
+    let inside = at + DVec3::splat(0.5);
+    reference::box_walls(at, DVec3::ONE)
+        .iter()
+        .map(|f| polygon(f.to_vec(), inside))
+        .collect()
+}
+
+#[test]
+fn sealed_rooms_exchange_no_light_and_their_cluster_pairs_are_dropped() {
+    // A 4 × 3 grid of sealed boxes 0.5 apart: no light can pass between two of them (every
+    // ray between their insides crosses a wall), so the first pass drops their cluster pairs
+    // instead of screening every polygon pair, and what is left still partitions each box's
+    // own pairs (the furnace identity per box).
+    let mut polygons = Vec::new();
+    for k in 0..12 {
+        let at = DVec3::new(f64::from(k % 4) * 1.5, 0.0, f64::from(k / 4) * 1.5);
+        polygons.extend(sealed_box(at));
+    }
+    let (h, areas) = build(&polygons, Subdivision::MaxSize(0.25), 1e-2);
+    let stats = h.stats();
+    let p = polygons.len() as u64;
+    assert!(stats.clusters_dropped > 0, "{stats:?}");
+    // Each box's 15 polygon pairs are linked; of the 2 376 pairs between boxes, the descent
+    // leaves only some of the neighbours' (a box's whole light bounds what the rays can miss
+    // only at a distance).
+    let all = p * (p - 1) / 2;
+    assert!(stats.polygon_pairs >= 12 * 15, "{stats:?}");
+    assert!(
+        stats.polygon_pairs < all / 2,
+        "{} of {all} polygon pairs linked: {stats:?}",
+        stats.polygon_pairs
+    );
+    let mesh = mesher::mesh(&polygons, Subdivision::MaxSize(0.25)).expect("mesh");
+    let n = h.n();
+    // Light from box 0 only: nothing may arrive anywhere else.
+    let x: Vec<f64> = mesh
+        .elements
+        .iter()
+        .map(|el| if el.polygon < 6 { 1.0 } else { 0.0 })
+        .collect();
+    let mut y = vec![0.0; n];
+    h.apply(&x, &mut y);
+    for (k, el) in mesh.elements.iter().enumerate() {
+        if el.polygon >= 6 {
+            assert_eq!(y[k], 0.0, "element {k} of polygon {}", el.polygon);
+        }
+    }
+    // Per box, the area-weighted row sum of F 1 is exactly 1 (closed, reciprocal links).
+    let mut sums = vec![0.0; n];
+    h.apply(&vec![1.0; n], &mut sums);
+    for b in 0..12 {
+        let (mut weighted, mut total) = (0.0, 0.0);
+        for (k, el) in mesh.elements.iter().enumerate() {
+            if el.polygon as usize / 6 == b {
+                weighted += areas[k] * sums[k];
+                total += areas[k];
+            }
+        }
+        assert!(
+            (weighted / total - 1.0).abs() < 1e-9,
+            "box {b}: area-weighted row sum {}",
+            weighted / total
+        );
+    }
+}
