@@ -194,6 +194,11 @@ pub struct Cli {
     /// centroid, normal, area, ρ, e and b in world space).
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<PathBuf>,
+    /// What the report says per element: `all` (a summary and every element), `summary`
+    /// (count, area, range and mean of b) or `none` [default: all up to 100 000 elements,
+    /// summary above, with a warning].
+    #[arg(long, value_enum, value_name = "WHICH")]
+    pub report_elements: Option<ReportElements>,
     /// Worker threads (default: all cores). Output bytes do not depend on it.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub threads: Option<u32>,
@@ -337,6 +342,17 @@ fn parse_near_ratio(text: &str) -> Result<f64, String> {
         Err(e) => Err(e.to_string()),
     }
 }
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ReportElements {
+    All,
+    Summary,
+    None,
+}
+
+/// Above this many elements a report lists no elements unless `--report-elements all` asks
+/// (each costs about 400 bytes of JSON).
+pub const REPORT_ELEMENTS_LIMIT: usize = 100_000;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Target {

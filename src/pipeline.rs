@@ -1,10 +1,11 @@
 //! Wires the stages together, times them, reports progress, and maps failures to exit codes.
 
-use crate::{Cli, Exposure, Shading, Target};
+use crate::{Cli, Exposure, ReportElements, Shading, Target, REPORT_ELEMENTS_LIMIT};
 use anyhow::{anyhow, Context};
 use bake_core::Solve;
 use exporter::report::{
-    self, Effects, EnergyInfo, LightEntry, Report, SolverInfo, SolverMethod, TransportInfo,
+    self, Effects, ElementsIncluded, EnergyInfo, LightEntry, Report, SolverInfo, SolverMethod,
+    TransportInfo,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
@@ -290,6 +291,12 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             imbalance: energy.imbalance,
             imbalance_relative: energy.imbalance_relative,
         });
+        let (which, warning) = report_elements(cli.report_elements, mesh.elements.len());
+        if let Some(line) = warning {
+            warn(std::slice::from_ref(&line));
+            warnings.push(line);
+        }
+        report.keep_elements(which);
         report.warnings = warnings.clone();
         timings.insert("total".to_string(), started.elapsed().as_secs_f64());
         report.timings = timings;
@@ -497,4 +504,49 @@ fn light_entries(scene: &importer::Scene, bake: &bake_core::Bake) -> Vec<LightEn
             }
         })
         .collect()
+}
+
+/// What a report keeps per element: the user's choice, else all up to
+/// [`REPORT_ELEMENTS_LIMIT`] elements and the summary above (with a warning).
+fn report_elements(
+    choice: Option<ReportElements>,
+    elements: usize,
+) -> (ElementsIncluded, Option<String>) {
+    match choice {
+        Some(ReportElements::All) => (ElementsIncluded::All, None),
+        Some(ReportElements::Summary) => (ElementsIncluded::Summary, None),
+        Some(ReportElements::None) => (ElementsIncluded::None, None),
+        None if elements > REPORT_ELEMENTS_LIMIT => (
+            ElementsIncluded::Summary,
+            Some(format!(
+                "the report lists no elements, only their summary: {elements} elements, more \
+                 than {REPORT_ELEMENTS_LIMIT} (--report-elements all lists them)"
+            )),
+        ),
+        None => (ElementsIncluded::All, None),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn large_reports_keep_the_summary_unless_asked() {
+        assert_eq!(
+            report_elements(None, 100_000),
+            (ElementsIncluded::All, None)
+        );
+        let (which, warning) = report_elements(None, 100_001);
+        assert_eq!(which, ElementsIncluded::Summary);
+        assert!(warning.is_some_and(|w| w.contains("100001 elements")));
+        for (choice, which) in [
+            (ReportElements::All, ElementsIncluded::All),
+            (ReportElements::Summary, ElementsIncluded::Summary),
+            (ReportElements::None, ElementsIncluded::None),
+        ] {
+            assert_eq!(report_elements(Some(choice), 5_000_000), (which, None));
+            assert_eq!(report_elements(Some(choice), 1), (which, None));
+        }
+    }
 }

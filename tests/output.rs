@@ -574,3 +574,45 @@ fn bakes_are_deterministic_across_runs_and_thread_counts() {
         }
     }
 }
+
+#[test]
+fn report_elements_summary_and_none_describe_the_same_bake() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let cube = fixture("cube.gltf");
+    let mut reports = Vec::new();
+    for which in ["all", "summary", "none"] {
+        let out = dir.path().join(format!("{which}.gltf"));
+        let json = dir.path().join(format!("{which}.json"));
+        let run = bake([
+            cube.as_os_str(),
+            out.as_os_str(),
+            "--subdiv".as_ref(),
+            "4".as_ref(),
+            "--target".as_ref(),
+            "vertex".as_ref(),
+            "--report-elements".as_ref(),
+            which.as_ref(),
+            "--report".as_ref(),
+            json.as_os_str(),
+        ]);
+        assert_eq!(run.code, Some(0), "{which}: {}", run.stderr);
+        reports.push(report_without_timings(&json));
+    }
+    let (all, summary, none) = (&reports[0], &reports[1], &reports[2]);
+    assert_eq!(all.elements.len(), 96);
+    assert!(summary.elements.is_empty() && none.elements.is_empty());
+    assert!(none.element_summary.is_none());
+    // The summary is that of the full list (the same bake: same bytes of b).
+    let s = summary.element_summary.expect("a summary");
+    assert_eq!(Some(s), exporter::report::ElementSummary::of(&all.elements));
+    assert_eq!(all.element_summary, Some(s));
+    assert_eq!(s.count, 96);
+    assert!((s.area - 6.0).abs() < 1e-9);
+    // The emitter's b is 1 exactly; the mean is between the darkest wall and 1.
+    assert_eq!(s.b_max, [1.0; 3]);
+    assert!(s
+        .b_mean
+        .iter()
+        .zip(&s.b_min)
+        .all(|(m, lo)| lo < m && *m < 1.0));
+}

@@ -23,8 +23,8 @@ use std::path::Path;
 
 /// The version of this report's layout (2: `solver.condition`, `solver.iterations`, the
 /// `iterative` method and the `energy` object; 4: `lights`, `energy.delivered`, elements'
-/// `direct`; 5: elements' `h`).
-pub const SCHEMA_VERSION: u32 = 5;
+/// `direct`; 5: elements' `h`; 6: `elements_included`, `element_summary`).
+pub const SCHEMA_VERSION: u32 = 6;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Report {
@@ -51,7 +51,73 @@ pub struct Report {
     pub lights: Vec<LightEntry>,
     pub warnings: Vec<String>,
     pub polygons: Vec<PolygonEntry>,
+    /// Which per-element data follow (absent in older reports: all).
+    #[serde(default)]
+    pub elements_included: ElementsIncluded,
+    /// Count, area and the range and area-weighted mean of b over all elements (absent in
+    /// older reports and with `none`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub element_summary: Option<ElementSummary>,
+    /// Every element, when `elements_included` is `all` (else empty).
     pub elements: Vec<ElementEntry>,
+}
+
+/// Which per-element data a report holds (`--report-elements`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ElementsIncluded {
+    /// The summary and every element.
+    #[default]
+    All,
+    /// The summary only.
+    Summary,
+    /// Neither.
+    None,
+}
+
+/// What a report says about its elements as a whole.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ElementSummary {
+    pub count: usize,
+    /// Total area.
+    pub area: f64,
+    /// Per band: the least and largest b, the element with the largest, and the
+    /// area-weighted mean.
+    pub b_min: [f64; 3],
+    pub b_max: [f64; 3],
+    pub b_max_element: [u32; 3],
+    pub b_mean: [f64; 3],
+}
+
+impl ElementSummary {
+    /// The summary of `elements` (`None` for no elements).
+    pub fn of(elements: &[ElementEntry]) -> Option<ElementSummary> {
+        let first = elements.first()?;
+        let mut s = ElementSummary {
+            count: elements.len(),
+            area: 0.0,
+            b_min: first.b,
+            b_max: first.b,
+            b_max_element: [0; 3],
+            b_mean: [0.0; 3],
+        };
+        let mut power = [0.0; 3];
+        for (k, el) in elements.iter().enumerate() {
+            s.area += el.area;
+            for (band, (&b, power)) in el.b.iter().zip(&mut power).enumerate() {
+                s.b_min[band] = s.b_min[band].min(b);
+                if b > s.b_max[band] {
+                    s.b_max[band] = b;
+                    s.b_max_element[band] = k as u32;
+                }
+                *power += el.area * b;
+            }
+        }
+        if s.area > 0.0 {
+            s.b_mean = power.map(|p| p / s.area);
+        }
+        Some(s)
+    }
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -287,8 +353,23 @@ impl Report {
             lights: Vec::new(),
             warnings: scene.warnings.clone(),
             polygons: Report::polygons_from(scene),
+            elements_included: ElementsIncluded::All,
+            element_summary: None,
             elements: Report::elements_from(scene, mesh, radiosity)?,
         })
+    }
+
+    /// Keeps `which` of the per-element data: fills in the summary (unless `None`) and drops
+    /// the element list (unless `All`). Call once the elements are complete.
+    pub fn keep_elements(&mut self, which: ElementsIncluded) {
+        self.elements_included = which;
+        self.element_summary = match which {
+            ElementsIncluded::None => None,
+            _ => ElementSummary::of(&self.elements),
+        };
+        if which != ElementsIncluded::All {
+            self.elements = Vec::new();
+        }
     }
 
     /// One entry per scene polygon, in polygon order.

@@ -3,7 +3,8 @@
 mod common;
 
 use bake_exporter::report::{
-    read_report, write_report, Counts, EnergyInfo, Report, SideName, SolverInfo, SolverMethod,
+    read_report, write_report, Counts, ElementsIncluded, EnergyInfo, Report, SideName, SolverInfo,
+    SolverMethod,
 };
 use bake_exporter::ExportError;
 use common::{file_names, fixture};
@@ -53,7 +54,7 @@ fn report() -> Report {
 fn report_holds_the_scene_and_results() {
     let fixture = fixture();
     let report = report();
-    assert_eq!(report.schema_version, 5);
+    assert_eq!(report.schema_version, 6);
     assert_eq!(report.input, "scenes/cube.gltf");
     assert_eq!(
         report.counts,
@@ -186,4 +187,44 @@ fn report_rejects_mismatched_radiosity_and_failed_writes_leave_nothing() {
     let result = write_report(&dir.path().join("missing/report.json"), &report());
     assert!(matches!(result, Err(ExportError::Io { .. })));
     assert!(file_names(dir.path()).is_empty());
+}
+
+#[test]
+fn a_summary_report_keeps_the_range_and_mean_of_b_and_drops_the_list() {
+    let full = report();
+    let mut summary = report();
+    summary.keep_elements(ElementsIncluded::Summary);
+    assert!(summary.elements.is_empty());
+    assert_eq!(summary.elements_included, ElementsIncluded::Summary);
+    let s = summary.element_summary.expect("a summary");
+    assert_eq!(s.count, full.elements.len());
+    // Against a direct computation over the full list.
+    let area: f64 = full.elements.iter().map(|e| e.area).sum();
+    assert!((s.area - area).abs() <= 1e-12 * area);
+    for band in 0..3 {
+        let values: Vec<f64> = full.elements.iter().map(|e| e.b[band]).collect();
+        let max = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let min = values.iter().copied().fold(f64::INFINITY, f64::min);
+        assert_eq!(s.b_max[band], max);
+        assert_eq!(s.b_min[band], min);
+        assert_eq!(values[s.b_max_element[band] as usize], max);
+        let mean = full
+            .elements
+            .iter()
+            .map(|e| e.area * e.b[band])
+            .sum::<f64>()
+            / area;
+        assert!((s.b_mean[band] - mean).abs() <= 1e-12 * mean.abs().max(1.0));
+    }
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let path = dir.path().join("summary.json");
+    write_report(&path, &summary).expect("write the report");
+    assert_eq!(read_report(&path).expect("read back"), summary);
+    let mut none = report();
+    none.keep_elements(ElementsIncluded::None);
+    assert!(none.elements.is_empty() && none.element_summary.is_none());
+    let mut all = report();
+    all.keep_elements(ElementsIncluded::All);
+    assert_eq!(all.elements, full.elements);
+    assert!(all.element_summary.is_some());
 }
