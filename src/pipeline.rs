@@ -112,6 +112,10 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         .map_err(bad_input)?;
     let mut timings = BTreeMap::new();
     timings.insert("import".to_string(), lap.elapsed().as_secs_f64());
+    let mut memory = BTreeMap::new();
+    if let Some(mib) = bake_core::peak_rss_mib_now() {
+        memory.insert("import".to_string(), mib);
+    }
     exporter::check_distinct(&planned, &scene.input_files).map_err(same_file)?;
     // Warnings as they arise: a bake refused or killed later still showed them.
     let warn = |lines: &[String]| {
@@ -140,6 +144,9 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     for (name, seconds) in &bake.timings {
         timings.insert(name.to_string(), *seconds);
     }
+    for (name, mib) in &bake.peak_rss_mib {
+        memory.insert(name.to_string(), *mib);
+    }
     warn(&bake.warnings);
     let mut warnings = scene.warnings.clone();
     warnings.extend(bake.warnings.iter().cloned());
@@ -148,6 +155,9 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     let mut lap = Instant::now();
     let mut stage = |name: &str, lap: &mut Instant| {
         timings.insert(name.to_string(), lap.elapsed().as_secs_f64());
+        if let Some(mib) = bake_core::peak_rss_mib_now() {
+            memory.insert(name.to_string(), mib);
+        }
         *lap = Instant::now();
     };
     let solution = &bake.solution;
@@ -300,6 +310,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         report.warnings = warnings.clone();
         timings.insert("total".to_string(), started.elapsed().as_secs_f64());
         report.timings = timings;
+        report.peak_rss_mib = memory;
         report::stage_report(&mut set, path, &report)
             .with_context(|| format!("cannot write {}", path.display()))
             .map_err(internal)?;

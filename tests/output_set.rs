@@ -223,6 +223,7 @@ fn which_set(dir: &Path, sets: &[(&str, &BTreeMap<String, Vec<u8>>); 2]) -> Opti
     let report_of = |bytes: &[u8]| {
         let mut value: serde_json::Value = serde_json::from_slice(bytes).ok()?;
         value.as_object_mut()?.remove("timings");
+        value.as_object_mut()?.remove("peak_rss_mib");
         Some(value)
     };
     let same = |set: &BTreeMap<String, Vec<u8>>| {

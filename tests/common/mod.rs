@@ -97,10 +97,12 @@ pub fn file_names(dir: &Path) -> Vec<String> {
     names
 }
 
-/// A bake report with `timings` (the only part that may change between runs) removed.
+/// A bake report with `timings` and `peak_rss_mib` (the only parts that may change between
+/// runs) removed.
 pub fn report_without_timings(path: &Path) -> exporter::report::Report {
     let mut report = exporter::report::read_report(path).expect("read the bake report");
     report.timings.clear();
+    report.peak_rss_mib.clear();
     report
 }
 

@@ -127,7 +127,20 @@ pub struct Bake {
     /// Seconds per stage, in pipeline order (`mesh`, `visibility_setup`, `form_factors`,
     /// `solve`, ...).
     pub timings: Vec<(&'static str, f64)>,
+    /// The process's peak resident memory (MiB) at the end of each stage, where the system
+    /// says (Linux: `VmHWM`); it only grows, so a stage's rise over the previous one is its
+    /// own peak's excess.
+    pub peak_rss_mib: Vec<(&'static str, f64)>,
     pub warnings: Vec<String>,
+}
+
+/// This process's peak resident memory so far, in MiB (`VmHWM` of `/proc/self/status`);
+/// `None` where that is not available.
+pub fn peak_rss_mib_now() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib / 1024.0)
 }
 
 impl Bake {
@@ -148,9 +161,13 @@ pub const DENSE_CROSSOVER: usize = 2_000;
 /// Bakes `scene` with `settings`: mesh, visibility, transport, solve (and `H = F b` if asked).
 pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Result<Bake, BakeError> {
     let mut timings = Vec::new();
+    let mut peak_rss_mib = Vec::new();
     let mut lap = Instant::now();
     let mut stage = |name: &'static str, lap: &mut Instant| {
         timings.push((name, lap.elapsed().as_secs_f64()));
+        if let Some(mib) = peak_rss_mib_now() {
+            peak_rss_mib.push((name, mib));
+        }
         *lap = Instant::now();
     };
     let mut warnings = Vec::new();
@@ -375,6 +392,7 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
         effects,
         transport,
         timings,
+        peak_rss_mib,
         warnings,
     })
 }

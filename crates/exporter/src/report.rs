@@ -37,6 +37,10 @@ pub struct Report {
     pub counts: Counts,
     /// Seconds per stage, by stage name.
     pub timings: BTreeMap<String, f64>,
+    /// The process's peak resident memory (MiB) at the end of each stage, where the system
+    /// says (absent in older reports). Like `timings`, it varies from run to run.
+    #[serde(default)]
+    pub peak_rss_mib: BTreeMap<String, f64>,
     pub solver: SolverInfo,
     /// Power balance of the solution; `None` until the caller sets it.
     pub energy: Option<EnergyInfo>,
@@ -346,6 +350,7 @@ impl Report {
             options: serde_json::Value::Object(serde_json::Map::new()),
             counts: Counts::new(scene, mesh, 0),
             timings: BTreeMap::new(),
+            peak_rss_mib: BTreeMap::new(),
             solver,
             energy: None,
             effects: Effects::default(),

@@ -47,6 +47,8 @@ struct Row {
     rays: String,
     /// The report's `timings`, in its order (seconds).
     timings: Vec<(String, f64)>,
+    /// The report's `peak_rss_mib`: the bake's peak RSS at the end of each stage (MiB).
+    memory: Vec<(String, f64)>,
     wall_s: f64,
     peak_rss_mib: f64,
 }
@@ -194,14 +196,18 @@ fn row(rooms: Rooms, predicted: u64, report: &Value, wall_s: f64, max_rss_kib: i
         Value::Null => "-".to_string(),
         v => v.to_string(),
     };
-    let timings = report["timings"]
-        .as_object()
-        .map(|t| {
-            t.iter()
-                .filter_map(|(k, v)| v.as_f64().map(|v| (k.clone(), v)))
-                .collect()
-        })
-        .unwrap_or_default();
+    let numbers = |key: &str| -> Vec<(String, f64)> {
+        report[key]
+            .as_object()
+            .map(|t| {
+                t.iter()
+                    .filter_map(|(k, v)| v.as_f64().map(|v| (k.clone(), v)))
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    let timings = numbers("timings");
+    let memory = numbers("peak_rss_mib");
     Row {
         rooms,
         polygons: count("polygons"),
@@ -210,15 +216,16 @@ fn row(rooms: Rooms, predicted: u64, report: &Value, wall_s: f64, max_rss_kib: i
         links: count("links"),
         rays: count("rays_cast"),
         timings,
+        memory,
         wall_s,
         peak_rss_mib: max_rss_kib as f64 / 1024.0,
     }
 }
 
-/// Every timing key over all rows, in first-seen order.
-fn timing_keys(rows: &[Row]) -> Vec<String> {
+/// Every key of `field` over all rows, in first-seen order.
+fn keys_of(rows: &[Row], field: fn(&Row) -> &Vec<(String, f64)>) -> Vec<String> {
     let mut keys: Vec<String> = Vec::new();
-    for (k, _) in rows.iter().flat_map(|r| &r.timings) {
+    for (k, _) in rows.iter().flat_map(field) {
         if !keys.contains(k) {
             keys.push(k.clone());
         }
@@ -227,7 +234,8 @@ fn timing_keys(rows: &[Row]) -> Vec<String> {
 }
 
 fn cells(rows: &[Row]) -> (Vec<String>, Vec<Vec<String>>) {
-    let keys = timing_keys(rows);
+    let keys = keys_of(rows, |r| &r.timings);
+    let memory_keys = keys_of(rows, |r| &r.memory);
     let mut header: Vec<String> = [
         "rooms",
         "polygons",
@@ -239,6 +247,7 @@ fn cells(rows: &[Row]) -> (Vec<String>, Vec<Vec<String>>) {
     .map(String::from)
     .to_vec();
     header.extend(keys.iter().map(|k| format!("{k}_s")));
+    header.extend(memory_keys.iter().map(|k| format!("{k}_peak_mib")));
     header.extend(["wall_s".into(), "peak_rss_mib".into()]);
     let body = rows
         .iter()
@@ -251,13 +260,17 @@ fn cells(rows: &[Row]) -> (Vec<String>, Vec<Vec<String>>) {
                 r.links.clone(),
                 r.rays.clone(),
             ];
+            let find = |values: &[(String, f64)], k: &str, digits: usize| {
+                values
+                    .iter()
+                    .find(|(key, _)| key == k)
+                    .map_or("-".into(), |(_, v)| format!("{v:.digits$}"))
+            };
             for k in &keys {
-                c.push(
-                    r.timings
-                        .iter()
-                        .find(|(key, _)| key == k)
-                        .map_or("-".into(), |(_, v)| format!("{v:.4}")),
-                );
+                c.push(find(&r.timings, k, 4));
+            }
+            for k in &memory_keys {
+                c.push(find(&r.memory, k, 1));
             }
             c.push(format!("{:.3}", r.wall_s));
             c.push(format!("{:.1}", r.peak_rss_mib));
