@@ -199,6 +199,14 @@ pub struct Cli {
     /// summary above, with a warning].
     #[arg(long, value_enum, value_name = "WHICH")]
     pub report_elements: Option<ReportElements>,
+    /// Save the hierarchical transport's links (form factors and visible fractions) to FILE,
+    /// for re-bakes that change only emission or colours (`--load-links`).
+    #[arg(long, value_name = "FILE")]
+    pub save_links: Option<PathBuf>,
+    /// Solve with the links saved by `--save-links` instead of linking again; refused unless
+    /// the geometry, mesh and link options are the same.
+    #[arg(long, value_name = "FILE")]
+    pub load_links: Option<PathBuf>,
     /// Worker threads (default: all cores). Output bytes do not depend on it.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub threads: Option<u32>,
@@ -264,6 +272,8 @@ impl Cli {
             link_tolerance: self.link_tolerance,
             light_samples: self.light_samples,
             irradiance: self.target != Target::Vertex,
+            save_links: self.save_links.is_some(),
+            load_links: self.load_links.clone(),
         }
     }
 }

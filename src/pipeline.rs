@@ -46,7 +46,8 @@ fn lightmap_paths(cli: &Cli) -> anyhow::Result<exporter::LightmapPaths> {
 
 /// Every file this bake may write, in the order they are renamed into place (OUT last).
 fn output_files(cli: &Cli) -> anyhow::Result<Vec<std::path::PathBuf>> {
-    let mut files: Vec<std::path::PathBuf> = cli.report.iter().cloned().collect();
+    let mut files: Vec<std::path::PathBuf> = cli.save_links.iter().cloned().collect();
+    files.extend(cli.report.iter().cloned());
     if cli.target != Target::Vertex {
         files.extend(lightmap_paths(cli)?.files()?);
     }
@@ -100,7 +101,9 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         exporter::check_target(path).map_err(|e| internal(anyhow!(e)))?;
     }
     let input = &cli.input;
-    exporter::check_distinct(&planned, std::slice::from_ref(input)).map_err(same_file)?;
+    let mut inputs = vec![input.clone()];
+    inputs.extend(cli.load_links.iter().cloned());
+    exporter::check_distinct(&planned, &inputs).map_err(same_file)?;
 
     // 1. Import.
     let lap = Instant::now();
@@ -240,6 +243,11 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
     stage("export", &mut lap);
 
     let mut set = exporter::OutputSet::new();
+    if let (Some(path), Some(saved)) = (&cli.save_links, &bake.saved_links) {
+        set.stage_with(path, |w| saved.write(w))
+            .with_context(|| format!("cannot write {}", path.display()))
+            .map_err(internal)?;
+    }
     if let Some(path) = &cli.report {
         let info = SolverInfo {
             method: match bake.solve {

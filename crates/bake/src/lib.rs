@@ -41,6 +41,11 @@ pub enum BakeError {
     Solve(SolveError),
     #[error("internal error: {0}")]
     Internal(SolveError),
+    #[error("{path}: {source}")]
+    LinksFile {
+        path: std::path::PathBuf,
+        source: transport::LinksFileError,
+    },
 }
 
 impl BakeError {
@@ -131,6 +136,8 @@ pub struct Bake {
     /// says (Linux: `VmHWM`); it only grows, so a stage's rise over the previous one is its
     /// own peak's excess.
     pub peak_rss_mib: Vec<(&'static str, f64)>,
+    /// The hierarchical transport, when `--save-links` asked to keep it.
+    pub saved_links: Option<SavedLinks>,
     pub warnings: Vec<String>,
 }
 
@@ -223,6 +230,14 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     // solution, and no transport needs building (a large scene without emitters would
     // otherwise build its whole matrix or hierarchy to find zeros).
     let dark = source.iter().all(|s| s.iter().all(|&v| v == 0.0));
+    let mut saved_links = None;
+    if dark && settings.save_links {
+        warnings.push(
+            "--save-links writes no file: nothing emits or reflects direct light, so no links \
+             were built"
+                .to_string(),
+        );
+    }
     let (solution, irradiance, energy, counts, effects) = if dark {
         transport.reason = format!(
             "{}; not built: nothing emits or reflects direct light, so b = 0 exactly",
@@ -264,27 +279,44 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                     passes: LINK_PASSES,
                     max_links,
                 };
-                progress.start("links", scene.polygons.len() as u64);
-                let built = HierarchicalTransport::build(
-                    &scene.polygons,
-                    &mesh,
-                    &occluders,
-                    &rho,
-                    &source,
-                    &options,
-                    &|step| match step {
-                        LinkProgress::Polygons(k) | LinkProgress::Links(k) => progress.advance(k),
-                        LinkProgress::Pass { pass, links } => {
-                            progress.finish();
-                            progress.start(&format!("links pass {pass}"), links);
-                        }
-                    },
-                );
-                progress.finish();
-                let h = built.map_err(|e| match e {
-                    LinkError::Solve(e) => BakeError::Solve(e),
-                    e => BakeError::TooLarge(e.to_string()),
-                })?;
+                let key = links_key(scene, &mesh, settings);
+                let built = if let Some(path) = &settings.load_links {
+                    progress.start("loading links", 0);
+                    let loaded = load_links(path, scene, &mesh, key);
+                    progress.finish();
+                    Some(loaded?)
+                } else {
+                    None
+                };
+                let loaded = built.is_some();
+                let h = match built {
+                    Some(h) => h,
+                    None => {
+                        progress.start("links", scene.polygons.len() as u64);
+                        let built = HierarchicalTransport::build(
+                            &scene.polygons,
+                            &mesh,
+                            &occluders,
+                            &rho,
+                            &source,
+                            &options,
+                            &|step| match step {
+                                LinkProgress::Polygons(k) | LinkProgress::Links(k) => {
+                                    progress.advance(k)
+                                }
+                                LinkProgress::Pass { pass, links } => {
+                                    progress.finish();
+                                    progress.start(&format!("links pass {pass}"), links);
+                                }
+                            },
+                        );
+                        progress.finish();
+                        built.map_err(|e| match e {
+                            LinkError::Solve(e) => BakeError::Solve(e),
+                            e => BakeError::TooLarge(e.to_string()),
+                        })?
+                    }
+                };
                 stage("links", &mut lap);
                 let s = h.stats();
                 let counts = Counts {
@@ -306,7 +338,11 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                 };
                 let effects = visibility::Effects {
                     occlusion: s.pairs_occludable > 0,
-                    reason: if s.pairs_occludable > 0 {
+                    reason: if loaded {
+                        "links loaded: their visible fractions are those computed when they \
+                         were saved"
+                            .to_string()
+                    } else if s.pairs_occludable > 0 {
                         format!(
                             "{} of the {} node pairs tested may be partly hidden by another \
                          polygon: shadow rays were cast for them",
@@ -324,6 +360,9 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                 stage("solve", &mut lap);
                 let (irradiance, energy) =
                     finish(&h, &mesh, &rho, &emission, &external, &solution, settings)?;
+                if settings.save_links {
+                    saved_links = Some(SavedLinks { key, transport: h });
+                }
                 (solution, irradiance, energy, counts, effects)
             }
             _ => {
@@ -393,8 +432,74 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
         transport,
         timings,
         peak_rss_mib,
+        saved_links,
         warnings,
     })
+}
+
+/// A bake's hierarchical transport kept for `--save-links`, with the key that a later
+/// `--load-links` must match.
+pub struct SavedLinks {
+    pub key: u64,
+    pub transport: HierarchicalTransport,
+}
+
+impl SavedLinks {
+    /// Writes the links file ([`HierarchicalTransport::save`]).
+    pub fn write(&self, w: &mut dyn std::io::Write) -> std::io::Result<()> {
+        self.transport.save(self.key, w)
+    }
+}
+
+/// What the links of a bake depend on: the polygons (vertices and normals, bit for bit), the
+/// element mesh and the options that shape linking. Not ρ or e: a re-bake with other
+/// emission or colours may reuse them (refinement followed the radiosities of the bake that
+/// saved them). FNV-1a over the bytes, stable across runs and platforms.
+pub fn links_key(scene: &Scene, mesh: &ElementMesh, settings: &Settings) -> u64 {
+    let mut hash = 0xcbf2_9ce4_8422_2325u64;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            hash ^= u64::from(b);
+            hash = hash.wrapping_mul(0x0100_0000_01b3);
+        }
+    };
+    eat(b"bake links 1");
+    eat(&(scene.polygons.len() as u64).to_le_bytes());
+    for p in &scene.polygons {
+        eat(&(p.vertices.len() as u64).to_le_bytes());
+        for v in p.vertices.iter().chain([&p.normal]) {
+            for c in v.to_array() {
+                eat(&c.to_bits().to_le_bytes());
+            }
+        }
+    }
+    eat(&(mesh.elements.len() as u64).to_le_bytes());
+    let options = format!(
+        "{:?} {:?} {:?} {} {} {}",
+        settings.subdivision,
+        settings.estimator,
+        settings.contour,
+        settings.link_tolerance.to_bits(),
+        settings.link_samples,
+        LINK_PASSES
+    );
+    eat(options.as_bytes());
+    hash
+}
+
+fn load_links(
+    path: &std::path::Path,
+    scene: &Scene,
+    mesh: &ElementMesh,
+    key: u64,
+) -> Result<HierarchicalTransport, BakeError> {
+    let error = |source| BakeError::LinksFile {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = std::fs::File::open(path).map_err(|e| error(transport::LinksFileError::Io(e)))?;
+    let mut reader = std::io::BufReader::with_capacity(1 << 20, file);
+    HierarchicalTransport::load(&scene.polygons, mesh, key, &mut reader).map_err(error)
 }
 
 /// GMRES or the bounce series through any operator (`Solve::Direct` needs the matrix).
@@ -507,6 +612,12 @@ fn finish<T: Transport>(
 
 /// Which transport `settings` asks for on a scene of `n` elements, and why.
 fn choose_transport(settings: &Settings, n: usize) -> TransportChoice {
+    if let Some(path) = &settings.load_links {
+        return TransportChoice {
+            kind: TransportKind::Hierarchical,
+            reason: format!("links loaded from {}", path.display()),
+        };
+    }
     match settings.transport {
         TransportKind::Dense => TransportChoice {
             kind: TransportKind::Dense,
@@ -515,6 +626,10 @@ fn choose_transport(settings: &Settings, n: usize) -> TransportChoice {
         TransportKind::Hierarchical => TransportChoice {
             kind: TransportKind::Hierarchical,
             reason: "--transport hierarchical".into(),
+        },
+        TransportKind::Auto if settings.save_links => TransportChoice {
+            kind: TransportKind::Hierarchical,
+            reason: "--save-links: the links are the hierarchical transport's".into(),
         },
         TransportKind::Auto if settings.direct_requested => TransportChoice {
             kind: TransportKind::Dense,

@@ -91,6 +91,10 @@ pub struct Request {
     pub light_samples: Option<u32>,
     /// Compute the irradiance `H = F b` (lightmaps need it).
     pub irradiance: bool,
+    /// Keep the hierarchical transport in the [`crate::Bake`] for saving (`--save-links`).
+    pub save_links: bool,
+    /// Read the hierarchical transport from this file instead of linking (`--load-links`).
+    pub load_links: Option<std::path::PathBuf>,
 }
 
 impl Default for Request {
@@ -112,6 +116,8 @@ impl Default for Request {
             link_tolerance: None,
             light_samples: None,
             irradiance: false,
+            save_links: false,
+            load_links: None,
         }
     }
 }
@@ -146,6 +152,9 @@ pub struct Settings {
     /// Shadow rays per element a polygon may shadow from a point or spot light.
     pub light_samples: u32,
     pub irradiance: bool,
+    /// `--save-links` / `--load-links` (either makes the transport hierarchical).
+    pub save_links: bool,
+    pub load_links: Option<std::path::PathBuf>,
 }
 
 impl Settings {
@@ -177,6 +186,16 @@ impl Settings {
                     "--light-samples must be between 1 and 1024, got {k}"
                 )));
             }
+        }
+        if (request.save_links || request.load_links.is_some())
+            && (request.transport == TransportKind::Dense
+                || request.solver == Some(SolverKind::Direct))
+        {
+            return Err(BakeError::Options(
+                "--save-links and --load-links need the hierarchical transport (the dense one \
+                 has no links); leave out --transport dense and --solver direct"
+                    .into(),
+            ));
         }
         if let Some(t) = request.link_tolerance {
             if !(t.is_finite() && t > 0.0) {
@@ -218,6 +237,8 @@ impl Settings {
             link_samples: request.visibility_samples.unwrap_or(preset.link_samples),
             light_samples: request.light_samples.unwrap_or(preset.light_samples),
             irradiance: request.irradiance,
+            save_links: request.save_links,
+            load_links: request.load_links.clone(),
         })
     }
 
@@ -269,6 +290,7 @@ impl Settings {
             "link_tolerance": hierarchical.then_some(self.link_tolerance),
             "link_samples": hierarchical.then_some(self.link_samples),
             "light_samples": self.light_samples,
+            "load_links": self.load_links.as_ref().map(|p| p.to_string_lossy().into_owned()),
         })
     }
 }

@@ -82,6 +82,35 @@ impl OutputSet {
         Ok(())
     }
 
+    /// Writes a file through `write` (buffered) to a temporary for `path`, for files too
+    /// large to hold twice in memory; renamed like [`OutputSet::stage`]'s.
+    pub fn stage_with(
+        &mut self,
+        path: &Path,
+        write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+    ) -> Result<(), ExportError> {
+        let temporary = temporary_path_for(path);
+        let result = fs::File::create(&temporary).and_then(|file| {
+            let mut buffered = std::io::BufWriter::with_capacity(1 << 20, file);
+            write(&mut buffered)?;
+            let file = buffered.into_inner().map_err(|e| e.into_error())?;
+            file.sync_all()
+        });
+        match result {
+            Ok(()) => {
+                self.staged.push((temporary, path.to_path_buf()));
+                Ok(())
+            }
+            Err(source) => {
+                remove_quietly(&temporary);
+                Err(ExportError::Io {
+                    path: path.to_path_buf(),
+                    source,
+                })
+            }
+        }
+    }
+
     /// Moves `other`'s staged files to the end of this set (renamed after this set's).
     pub fn append(&mut self, mut other: OutputSet) {
         self.staged.append(&mut other.staged);

@@ -70,6 +70,9 @@ use visibility::{pair_seed, Patch};
 
 use crate::clusters::{self, Clusters, Weights};
 
+mod links_file;
+pub use links_file::LinksFileError;
+
 /// Settings of [`HierarchicalTransport::build`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HierarchicalOptions {

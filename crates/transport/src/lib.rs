@@ -20,6 +20,7 @@ pub mod hierarchical;
 
 pub use hierarchical::{
     HierarchicalOptions, HierarchicalStats, HierarchicalTransport, LinkError, LinkProgress,
+    LinksFileError,
 };
 use solver::{Operator, BANDS};
 

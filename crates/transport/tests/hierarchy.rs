@@ -277,3 +277,54 @@ fn sealed_rooms_exchange_no_light_and_their_cluster_pairs_are_dropped() {
         );
     }
 }
+
+#[test]
+fn saved_links_load_to_the_same_operator_and_damage_is_refused() {
+    let polygons = box_walls();
+    let subdivision = Subdivision::MaxSize(0.3);
+    let (h, _) = build(&polygons, subdivision, 1e-2);
+    let mesh = mesher::mesh(&polygons, subdivision).expect("mesh");
+    let mut bytes = Vec::new();
+    h.save(0xfeed, &mut bytes).expect("save to memory");
+    let loaded =
+        HierarchicalTransport::load(&polygons, &mesh, 0xfeed, &mut bytes.as_slice()).expect("load");
+    assert_eq!(loaded.stats().links, h.stats().links);
+    let n = h.n();
+    let x: Vec<f64> = (0..n).map(|i| ((i * 7919) % 13) as f64).collect();
+    let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+    h.apply(&x, &mut a);
+    loaded.apply(&x, &mut b);
+    assert!(a.iter().zip(&b).all(|(p, q)| p.to_bits() == q.to_bits()));
+    assert_eq!(loaded.accuracy(), h.accuracy());
+
+    let load =
+        |bytes: &[u8], key: u64, mesh: &mesher::ElementMesh| match HierarchicalTransport::load(
+            &polygons,
+            mesh,
+            key,
+            &mut &bytes[..],
+        ) {
+            Ok(_) => String::from("loaded"),
+            Err(e) => e.to_string(),
+        };
+    assert!(load(&bytes, 0xbeef, &mesh).contains("other geometry or link options"));
+    assert!(load(b"GLTF", 0xfeed, &mesh).contains("not a links file"));
+    // Truncated anywhere after the header: a read error, never a panic.
+    for cut in [20, 60, bytes.len() / 2, bytes.len() - 1] {
+        let message = load(&bytes[..cut], 0xfeed, &mesh);
+        assert_ne!(message, "loaded", "cut at {cut}");
+    }
+    let mut longer = bytes.clone();
+    longer.push(0);
+    assert!(load(&longer, 0xfeed, &mesh).contains("after the last"));
+    // A NaN coefficient (the first one follows the header, offsets and sources).
+    let nodes = h.stats().nodes as usize;
+    let entries = 2 * h.stats().links as usize;
+    let first = 8 * 8 + 8 * (nodes + 1) + 4 * entries;
+    let mut nan = bytes.clone();
+    nan[first..first + 8].copy_from_slice(&f64::NAN.to_le_bytes());
+    assert!(load(&nan, 0xfeed, &mesh).contains("coefficient NaN"));
+    // Another mesh of the same polygons has other trees.
+    let finer = mesher::mesh(&polygons, Subdivision::MaxSize(0.2)).expect("mesh");
+    assert!(load(&bytes, 0xfeed, &finer).contains("elements"));
+}
