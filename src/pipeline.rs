@@ -4,7 +4,8 @@ use crate::{Cli, Exposure, Shading, Target};
 use anyhow::{anyhow, Context};
 use bake_core::Solve;
 use exporter::report::{
-    self, Effects, EnergyInfo, LightEntry, Report, SolverInfo, SolverMethod, TransportInfo,
+    self, AccuracyInfo, Effects, EnergyInfo, LightEntry, Report, SolverInfo, SolverMethod,
+    TransportInfo,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
@@ -286,6 +287,15 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             escaped: energy.escaped,
             imbalance: energy.imbalance,
             imbalance_relative: energy.imbalance_relative,
+        });
+        let a = &bake.accuracy;
+        report.accuracy = Some(AccuracyInfo {
+            max_error: a.max_error,
+            rho_max: a.rho_max,
+            ff_tolerance: a.chosen_tolerance,
+            row_sum_accuracy: a.row_sum_accuracy,
+            condition_bound: Some(a.condition_bound).filter(|c| c.is_finite()),
+            error_bound: a.error_bound.map(|b| b.filter(|b| b.is_finite())),
         });
         report.warnings = warnings.clone();
         timings.insert("total".to_string(), started.elapsed().as_secs_f64());

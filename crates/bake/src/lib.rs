@@ -5,12 +5,14 @@
 //! exactly the same bake: [`Settings::resolve`] turns a [`Request`] (the user's options) and
 //! its quality preset into settings once, and [`run`] performs the stages, gathers ρ and e per
 //! element, adds the punctual lights' first reflection `ρ E / π` to e (the paper's §2 E(j)),
-//! chooses the transport, solves, and times every stage.
+//! chooses the transport, derives the dense transport's per-pair form-factor tolerance from
+//! the target error of `b` ([`accuracy`]), solves, and times every stage.
 //!
 //! It is not the importer or the exporter (the caller reads the scene and writes the outputs)
 //! and knows no file formats or command-line syntax. It is the only crate that knows the
 //! presets ([`presets`]).
 
+pub mod accuracy;
 pub mod presets;
 mod settings;
 
@@ -19,7 +21,8 @@ pub use settings::{
     HIERARCHICAL_SOLVE_TOLERANCE,
 };
 
-use form_factor::{FormFactors, Occluders, Occlusion};
+pub use accuracy::Accuracy;
+use form_factor::{Estimator, FormFactors, Occluders, Occlusion};
 use importer::Scene;
 use mesher::ElementMesh;
 use solver::{EnergyBalance, Solution, SolveError, BANDS};
@@ -39,6 +42,9 @@ pub enum BakeError {
     TooLarge(String),
     #[error("no solution: {0}")]
     Solve(SolveError),
+    /// The solver's refusal with what about this scene or these options caused it.
+    #[error("no solution: {error}; {hint}")]
+    Unsolvable { error: SolveError, hint: String },
     #[error("internal error: {0}")]
     Internal(SolveError),
 }
@@ -119,6 +125,11 @@ pub struct Bake {
     pub counts: Counts,
     pub effects: visibility::Effects,
     pub transport: TransportChoice,
+    /// The form-factor estimator the bake used (under the dense transport with `auto`, its
+    /// tolerance is the one the target chose).
+    pub estimator: Estimator,
+    /// The target error of `b`, the tolerance it chose and the bound the solve leaves.
+    pub accuracy: Accuracy,
     /// Seconds per stage, in pipeline order (`mesh`, `visibility_setup`, `form_factors`,
     /// `solve`, ...).
     pub timings: Vec<(&'static str, f64)>,
@@ -128,7 +139,7 @@ pub struct Bake {
 impl Bake {
     /// The report's `options`: the settings as resolved, with the transport used.
     pub fn options_json(&self, settings: &Settings) -> serde_json::Value {
-        settings.to_json(self.transport.kind)
+        settings.to_json(self.transport.kind, self.estimator)
     }
 }
 
@@ -159,6 +170,7 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     let mesh = mesher::mesh(&scene.polygons, settings.subdivision)?;
     let n = mesh.elements.len();
     let (rho, emission) = element_values(scene, &mesh);
+    let rho_max = rho.iter().flatten().copied().fold(0.0f64, f64::max);
     if scene.lights.is_empty() && emission.iter().all(|x| x.iter().all(|&v| v == 0.0)) {
         warnings.push("the scene has no emitters and no lights: every radiosity is 0".to_string());
     }
@@ -201,6 +213,11 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     // solution, and no transport needs building (a large scene without emitters would
     // otherwise build its whole matrix or hierarchy to find zeros).
     let dark = source.iter().all(|s| s.iter().all(|&v| v == 0.0));
+    // The dense transport's estimator: `auto`'s tolerance from the target and ρ_max.
+    let estimator = match transport.kind {
+        TransportKind::Hierarchical => settings.estimator,
+        _ => settings.dense_estimator(rho_max),
+    };
     let (solution, irradiance, energy, counts, effects) = if dark {
         transport.reason = format!(
             "{}; not built: nothing emits or reflects direct light, so b = 0 exactly",
@@ -260,7 +277,9 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                 );
                 progress.finish();
                 let h = built.map_err(|e| match e {
-                    LinkError::Solve(e) => BakeError::Solve(e),
+                    LinkError::Solve(e) => {
+                        explain_refusal(BakeError::Solve(e), settings, settings.estimator, rho_max)
+                    }
                     e => BakeError::TooLarge(e.to_string()),
                 })?;
                 stage("links", &mut lap);
@@ -295,7 +314,8 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                         )
                     },
                 };
-                let solution = solve_with(&h, solve, &rho, &source, progress)?;
+                let solution = solve_with(&h, solve, &rho, &source, progress)
+                    .map_err(|e| explain_refusal(e, settings, settings.estimator, rho_max))?;
                 stage("solve", &mut lap);
                 let (irradiance, energy) =
                     finish(&h, &mesh, &rho, &emission, &external, &solution, settings)?;
@@ -311,7 +331,7 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                 let effects = occludable.effects();
                 stage("occludable_pairs", &mut lap);
                 let mut form_factors =
-                    FormFactors::new(&mesh, settings.contour).with_estimator(settings.estimator);
+                    FormFactors::new(&mesh, settings.contour).with_estimator(estimator);
                 if effects.occlusion {
                     form_factors = form_factors.with_occlusion(Occlusion {
                         occluders: &occluders,
@@ -337,13 +357,14 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                 };
                 let f = solver::DenseMatrix::new(n, &matrix.data)
                     .map_err(BakeError::Internal)?
-                    .with_accuracy(settings.estimator.row_sum_accuracy());
+                    .with_accuracy(estimator.row_sum_accuracy());
                 let solution = match solve {
                     Solve::Direct => {
-                        solver::solve_direct(&f, &rho, &source).map_err(BakeError::Solve)?
+                        solver::solve_direct(&f, &rho, &source).map_err(BakeError::Solve)
                     }
-                    _ => solve_with(&f, solve, &rho, &source, progress)?,
-                };
+                    _ => solve_with(&f, solve, &rho, &source, progress),
+                }
+                .map_err(|e| explain_refusal(e, settings, estimator, rho_max))?;
                 stage("solve", &mut lap);
                 let (irradiance, energy) =
                     finish(&f, &mesh, &rho, &emission, &external, &solution, settings)?;
@@ -352,6 +373,26 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
         }
     };
     stage("energy", &mut lap);
+
+    let row_sum_accuracy = estimator.row_sum_accuracy();
+    let chosen_tolerance = match estimator {
+        Estimator::Auto { tolerance }
+            if settings.derive_tolerance && transport.kind != TransportKind::Hierarchical =>
+        {
+            Some(tolerance)
+        }
+        _ => None,
+    };
+    let accuracy = Accuracy {
+        max_error: settings.max_error,
+        rho_max,
+        chosen_tolerance,
+        row_sum_accuracy,
+        condition_bound: accuracy::condition_bound(rho_max, row_sum_accuracy),
+        error_bound: solution
+            .condition
+            .map(|c| c.map(|c| c * rho_max * row_sum_accuracy)),
+    };
 
     Ok(Bake {
         mesh,
@@ -366,9 +407,41 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
         counts,
         effects,
         transport,
+        estimator,
+        accuracy,
         timings,
         warnings,
     })
+}
+
+/// The solver's refusal of a dense system, with its cause: a reflectance of 1 (no finite
+/// answer whatever the accuracy; glTF's default material is ρ = 1), or a per-pair tolerance
+/// given by the user that is too loose for this scene's conditioning.
+fn explain_refusal(
+    error: BakeError,
+    settings: &Settings,
+    estimator: Estimator,
+    rho_max: f64,
+) -> BakeError {
+    let BakeError::Solve(error @ SolveError::Singular { .. }) = error else {
+        return error;
+    };
+    let hint = if rho_max >= 1.0 {
+        "a surface reflects everything (rho = 1) and no accuracy makes the answer finite:          lower its reflectance (glTF's default material, without baseColorFactor, has rho = 1)"
+            .to_string()
+    } else if !settings.derive_tolerance
+        && estimator.row_sum_accuracy() > form_factor::ROW_SUM_ACCURACY
+    {
+        let tolerance = estimator.row_sum_accuracy();
+        format!(
+            "the largest reflectance is {rho_max}, so the form factors' stated accuracy              {tolerance:e} can change the answer entirely; give a smaller --ff-tolerance (or              none, and --max-error sets it: {:e} for {:e})",
+            accuracy::pair_tolerance(settings.max_error, rho_max),
+            settings.max_error
+        )
+    } else {
+        return BakeError::Solve(error);
+    };
+    BakeError::Unsolvable { error, hint }
 }
 
 /// GMRES or the bounce series through any operator (`Solve::Direct` needs the matrix).

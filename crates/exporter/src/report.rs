@@ -49,6 +49,10 @@ pub struct Report {
     /// The punctual lights the bake used (absent in older reports).
     #[serde(default)]
     pub lights: Vec<LightEntry>,
+    /// The target error of `b`, the form-factor tolerance it chose and the bound the solve
+    /// leaves (absent in older reports).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accuracy: Option<AccuracyInfo>,
     pub warnings: Vec<String>,
     pub polygons: Vec<PolygonEntry>,
     pub elements: Vec<ElementEntry>,
@@ -148,6 +152,27 @@ pub struct SolverInfo {
     pub condition: [Option<f64>; 3],
     /// Per band, iterations of the [`SolverMethod::Iterative`] solver (0 otherwise).
     pub iterations: [u32; 3],
+}
+
+/// `--max-error` and what it led to.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AccuracyInfo {
+    /// Target relative error of `b`.
+    pub max_error: f64,
+    /// Largest reflectance of any element in any band.
+    pub rho_max: f64,
+    /// The per-pair form-factor tolerance the target chose (`null` when an explicit
+    /// estimator or `--ff-tolerance` set it, or under the hierarchical transport).
+    pub ff_tolerance: Option<f64>,
+    /// The accuracy of `F`'s row sums the estimator states (what the solver was told).
+    pub row_sum_accuracy: f64,
+    /// A-priori bound on `cond_∞(I − ρF)`: `(1 + ρ_max(1 + a))/(1 − ρ_max(1 + a))` for that
+    /// accuracy `a` (`null`: unbounded, ρ_max = 1).
+    pub condition_bound: Option<f64>,
+    /// Per band after the solve: the condition estimate × ρ_max × the row-sum accuracy, the
+    /// relative error of `b` the form factors' accuracy can cause (`null` when the band was
+    /// not solved as a linear system).
+    pub error_bound: [Option<f64>; 3],
 }
 
 /// One punctual light the bake used, in world space, and what its direct light took.
@@ -275,6 +300,7 @@ impl Report {
             effects: Effects::default(),
             transport: TransportInfo::default(),
             lights: Vec::new(),
+            accuracy: None,
             warnings: scene.warnings.clone(),
             polygons: Report::polygons_from(scene),
             elements: Report::elements_from(scene, mesh, radiosity)?,
@@ -438,6 +464,16 @@ fn check_finite(report: &Report) -> Result<(), ExportError> {
         ];
         if let Some((name, values)) = fields.iter().find(|(_, v)| !all_finite(&v[..])) {
             return not_finite(format!("report energy {name} {values:?}"));
+        }
+    }
+    if let Some(a) = &report.accuracy {
+        let values = [a.max_error, a.rho_max, a.row_sum_accuracy]
+            .into_iter()
+            .chain(a.ff_tolerance)
+            .chain(a.condition_bound)
+            .chain(a.error_bound.iter().flatten().copied());
+        if !values.into_iter().all(f64::is_finite) {
+            return not_finite(format!("report accuracy {a:?}"));
         }
     }
     Ok(())

@@ -115,6 +115,8 @@ pub fn bake_once(scene: &Scene, setting: &Setting) -> Result<Run> {
     };
     let mut settings = bake_core::Settings::resolve(&request, &scene.polygons)?;
     settings.estimator = setting.estimator;
+    // The sweep measures each estimator and tolerance as given, not the one --max-error derives.
+    settings.derive_tolerance = false;
     settings.contour = setting.contour;
     settings.visibility_samples = setting.samples;
     settings.dense_solve = match setting.solve {
