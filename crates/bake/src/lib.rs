@@ -13,6 +13,7 @@
 //! presets ([`presets`]).
 
 pub mod accuracy;
+pub mod error;
 pub mod presets;
 mod settings;
 
@@ -125,6 +126,8 @@ pub struct Bake {
     pub counts: Counts,
     pub effects: visibility::Effects,
     pub transport: TransportChoice,
+    /// Per element: the estimated bound on `|b − b̄|` and its parts ([`error`]).
+    pub error: Vec<error::Parts>,
     /// The form-factor estimator the bake used (under the dense transport with `auto`, its
     /// tolerance is the one the target chose).
     pub estimator: Estimator,
@@ -218,6 +221,10 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
         TransportKind::Hierarchical => settings.estimator,
         _ => settings.dense_estimator(rho_max),
     };
+    // Polygons some polygon may shadow (shadow rays decided part of their light), and the
+    // rays per pair, for the error estimate.
+    let mut sampled_polygons = vec![false; scene.polygons.len()];
+    let mut samples = 0;
     let (solution, irradiance, energy, counts, effects) = if dark {
         transport.reason = format!(
             "{}; not built: nothing emits or reflects direct light, so b = 0 exactly",
@@ -316,6 +323,11 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                 };
                 let solution = solve_with(&h, solve, &rho, &source, progress)
                     .map_err(|e| explain_refusal(e, settings, settings.estimator, rho_max))?;
+                if s.pairs_occludable > 0 {
+                    // The hierarchy keeps no per-polygon record: every element is charged.
+                    sampled_polygons.fill(true);
+                    samples = settings.link_samples;
+                }
                 stage("solve", &mut lap);
                 let (irradiance, energy) =
                     finish(&h, &mesh, &rho, &emission, &external, &solution, settings)?;
@@ -329,6 +341,14 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                 let occludable = occluders.occludable_pairs_with_progress(&|k| progress.advance(k));
                 progress.finish();
                 let effects = occludable.effects();
+                for &(p, q) in occludable.pairs() {
+                    for k in [p, q] {
+                        if let Some(s) = sampled_polygons.get_mut(k as usize) {
+                            *s = true;
+                        }
+                    }
+                }
+                samples = settings.visibility_samples;
                 stage("occludable_pairs", &mut lap);
                 let mut form_factors =
                     FormFactors::new(&mesh, settings.contour).with_estimator(estimator);
@@ -394,7 +414,33 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
             .map(|c| c.map(|c| c * rho_max * row_sum_accuracy)),
     };
 
+    let sampled: Vec<bool> = mesh
+        .elements
+        .iter()
+        .map(|e| sampled_polygons.get(e.polygon as usize) == Some(&true))
+        .collect();
+    let error = error::estimate(&error::Inputs {
+        mesh: &mesh,
+        b: &solution.b,
+        rho: &rho,
+        source: &source,
+        row_sum_accuracy,
+        condition: solution.condition.map(|c| c.unwrap_or(1.0)),
+        rho_max,
+        residual: [0, 1, 2].map(|c| {
+            if solution.residual_relative[c] {
+                solution.residual[c]
+            } else {
+                0.0
+            }
+        }),
+        sampled: &sampled,
+        samples,
+    });
+    stage("error_estimate", &mut lap);
+
     Ok(Bake {
+        error,
         mesh,
         rho,
         emission,

@@ -23,8 +23,8 @@ use std::path::Path;
 
 /// The version of this report's layout (2: `solver.condition`, `solver.iterations`, the
 /// `iterative` method and the `energy` object; 4: `lights`, `energy.delivered`, elements'
-/// `direct`; 5: elements' `h`).
-pub const SCHEMA_VERSION: u32 = 5;
+/// `direct`; 5: elements' `h`; 6: the `accuracy` object and elements' `error`).
+pub const SCHEMA_VERSION: u32 = 6;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Report {
@@ -173,6 +173,25 @@ pub struct AccuracyInfo {
     /// relative error of `b` the form factors' accuracy can cause (`null` when the band was
     /// not solved as a linear system).
     pub error_bound: [Option<f64>; 3],
+    /// The elements' error estimates summarised (absent in older reports).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<ErrorSummary>,
+}
+
+/// The per-element error estimates of a bake, per band: largest, area-weighted RMS, where the
+/// largest is, and the largest of each part.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ErrorSummary {
+    pub max: [f64; 3],
+    pub rms: [f64; 3],
+    /// Per band: the element with the largest estimate and its centroid.
+    pub max_element: [usize; 3],
+    pub max_centroid: [[f64; 3]; 3],
+    /// Per band: the largest discretisation, form-factor, visibility and solver part.
+    pub max_discretisation: [f64; 3],
+    pub max_form_factors: [f64; 3],
+    pub max_visibility: [f64; 3],
+    pub max_solver: [f64; 3],
 }
 
 /// One punctual light the bake used, in world space, and what its direct light took.
@@ -276,6 +295,10 @@ pub struct ElementEntry {
     /// lightmap, or a textured material, whose vertex-bake `COLOR_0` is H).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub h: Option<[f64; 3]>,
+    /// The estimated bound on `|b − b̄|` per band, `b̄` the element's area average of the
+    /// exact continuous radiosity (absent in older reports).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<[f64; 3]>,
 }
 
 impl Report {
@@ -361,6 +384,7 @@ impl Report {
                     b: *b,
                     direct: [0.0; 3],
                     h: None,
+                    error: None,
                 })
             })
             .collect()
@@ -431,6 +455,12 @@ fn check_finite(report: &Report) -> Result<(), ExportError> {
                 element_name(report, i)
             ));
         }
+        if let Some(error) = element.error.filter(|e| !all_finite(e)) {
+            return not_finite(format!(
+                "report {}: error {error:?}",
+                element_name(report, i)
+            ));
+        }
     }
     for light in &report.lights {
         let values = light
@@ -471,7 +501,19 @@ fn check_finite(report: &Report) -> Result<(), ExportError> {
             .into_iter()
             .chain(a.ff_tolerance)
             .chain(a.condition_bound)
-            .chain(a.error_bound.iter().flatten().copied());
+            .chain(a.error_bound.iter().flatten().copied())
+            .chain(a.error.iter().flat_map(|e| {
+                [
+                    e.max,
+                    e.rms,
+                    e.max_discretisation,
+                    e.max_form_factors,
+                    e.max_visibility,
+                    e.max_solver,
+                ]
+                .into_iter()
+                .flatten()
+            }));
         if !values.into_iter().all(f64::is_finite) {
             return not_finite(format!("report accuracy {a:?}"));
         }

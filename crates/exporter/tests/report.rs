@@ -53,7 +53,7 @@ fn report() -> Report {
 fn report_holds_the_scene_and_results() {
     let fixture = fixture();
     let report = report();
-    assert_eq!(report.schema_version, 5);
+    assert_eq!(report.schema_version, 6);
     assert_eq!(report.input, "scenes/cube.gltf");
     assert_eq!(
         report.counts,
