@@ -6,7 +6,8 @@
 //! its quality preset into settings once, and [`run`] performs the stages, gathers ρ and e per
 //! element, adds the punctual lights' first reflection `ρ E / π` to e (the paper's §2 E(j)),
 //! chooses the transport, derives the dense transport's per-pair form-factor tolerance from
-//! the target error of `b` ([`accuracy`]), solves, and times every stage.
+//! the target error of `b` ([`accuracy`]), solves, estimates each element's error
+//! ([`error`]), and times every stage.
 //!
 //! It is not the importer or the exporter (the caller reads the scene and writes the outputs)
 //! and knows no file formats or command-line syntax. It is the only crate that knows the
