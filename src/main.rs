@@ -33,10 +33,10 @@ pub struct Cli {
     /// Output scene: .gltf (writes OUT's stem + .bin beside it) or .glb. Written atomically.
     pub output: PathBuf,
 
-    /// The accuracy–time trade in one knob: element size, form-factor estimator and
-    /// tolerance, and shadow rays, as measured in docs/accuracy.md. `draft`: elements of
-    /// diagonal/8, --ff-tolerance 1e-2, 49 rays; `normal`: diagonal/16, 1e-3, 121 rays;
-    /// `high`: diagonal/32, 1e-4, 961 rays. Options given explicitly override the preset.
+    /// The accuracy–time trade in one knob: element size, target error (--max-error),
+    /// form-factor estimator, and shadow rays, as measured in docs/accuracy.md. `draft`:
+    /// elements of diagonal/8, --max-error 1e-2, 49 rays; `normal`: diagonal/16, 1e-3, 121
+    /// rays; `high`: diagonal/32, 1e-4, 961 rays. Options given explicitly override the preset.
     #[arg(long, value_enum, default_value_t = QualityArg::Normal)]
     pub quality: QualityArg,
 
@@ -118,10 +118,18 @@ pub struct Cli {
     #[arg(long, value_enum, value_name = "E")]
     pub ff_estimator: Option<EstimatorArg>,
     /// `auto` estimator: the largest relative error allowed per element pair, in (0, 1)
-    /// (implies --ff-estimator auto) [default: from --quality]. Below 1e-8 every pair gets
-    /// the contour integral.
+    /// (implies --ff-estimator auto), overriding the one --max-error derives. Below 1e-8 every
+    /// pair gets the contour integral.
     #[arg(long, value_name = "T", value_parser = parse_tolerance)]
     pub ff_tolerance: Option<f64>,
+    /// Target relative error of the radiosity b, in (0, 1): the dense transport's per-pair
+    /// form-factor tolerance is derived from it and the scene's largest reflectance ρ, through
+    /// the bound cond∞ ≤ (1 + ρ(1 + τ))/(1 − ρ(1 + τ)) (bright rooms get tighter form factors,
+    /// e.g. 5e-7 per pair for ρ = 0.999 at 1e-3). It bounds what form-factor integration can
+    /// add, not the element size's discretisation error (see the report's `error`).
+    /// [default: from --quality: 1e-2 draft, 1e-3 normal, 1e-4 high]
+    #[arg(long, value_name = "E", value_parser = parse_tolerance)]
+    pub max_error: Option<f64>,
     /// `point-polygon` estimator: quadrature points on the smaller element of each pair:
     /// 1 (its centroid), or 3 (degree 2) or 7 (degree 5) per triangle of its fan (a quad is two
     /// triangles).
@@ -254,6 +262,7 @@ impl Cli {
                 EstimatorArg::Auto => EstimatorKind::Auto,
             }),
             ff_tolerance: self.ff_tolerance,
+            max_error: self.max_error,
             ff_points: self.ff_points,
             visibility_samples: self.visibility_samples,
             solver: match (self.solver, iterative_given) {

@@ -4,8 +4,8 @@ use crate::{Cli, Exposure, ReportElements, Shading, Target, REPORT_ELEMENTS_LIMI
 use anyhow::{anyhow, Context};
 use bake_core::Solve;
 use exporter::report::{
-    self, Effects, ElementsIncluded, EnergyInfo, LightEntry, Report, SolverInfo, SolverMethod,
-    TransportInfo,
+    self, AccuracyInfo, Effects, ElementsIncluded, EnergyInfo, ErrorSummary, LightEntry, Report,
+    SolverInfo, SolverMethod, TransportInfo,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
@@ -209,11 +209,13 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             exporter::auto_exposure(&areas, &solution.b)
         }
     };
+    let errors: Vec<[f64; 3]> = bake.error.iter().map(|p| p.total()).collect();
     let vertex_bake = exporter::Bake {
         scene: &scene,
         mesh,
         radiosity: &solution.b,
         irradiance: bake.irradiance.as_deref(),
+        error: Some(&errors),
         shading,
         exposure,
     };
@@ -275,6 +277,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             entry.e = bake.emission[i];
             entry.direct = bake.direct[i];
             entry.h = bake.irradiance.as_ref().map(|h| h[i]);
+            entry.error = errors.get(i).copied();
         }
         report.lights = light_entries(&scene, &bake);
         let counts = &bake.counts;
@@ -315,6 +318,16 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             warnings.push(line);
         }
         report.keep_elements(which);
+        let a = &bake.accuracy;
+        report.accuracy = Some(AccuracyInfo {
+            max_error: a.max_error,
+            rho_max: a.rho_max,
+            ff_tolerance: a.chosen_tolerance,
+            row_sum_accuracy: a.row_sum_accuracy,
+            condition_bound: Some(a.condition_bound).filter(|c| c.is_finite()),
+            error_bound: a.error_bound.map(|b| b.filter(|b| b.is_finite())),
+            error: Some(error_summary(mesh, &bake.error)),
+        });
         report.warnings = warnings.clone();
         timings.insert("total".to_string(), started.elapsed().as_secs_f64());
         report.timings = timings;
@@ -544,6 +557,42 @@ fn report_elements(
         ),
         None => (ElementsIncluded::All, None),
     }
+}
+
+/// The report's summary of the per-element error estimates `parts` (one per element of
+/// `mesh`).
+fn error_summary(mesh: &mesher::ElementMesh, parts: &[bake_core::error::Parts]) -> ErrorSummary {
+    let mut s = ErrorSummary {
+        max: [0.0; 3],
+        rms: [0.0; 3],
+        max_element: [0; 3],
+        max_centroid: [[0.0; 3]; 3],
+        max_discretisation: [0.0; 3],
+        max_form_factors: [0.0; 3],
+        max_visibility: [0.0; 3],
+        max_solver: [0.0; 3],
+    };
+    let mut area = 0.0;
+    for (i, (element, p)) in mesh.elements.iter().zip(parts).enumerate() {
+        let total = p.total();
+        area += element.area;
+        for (c, &t) in total.iter().enumerate() {
+            if t > s.max[c] {
+                s.max[c] = t;
+                s.max_element[c] = i;
+                s.max_centroid[c] = element.centroid.to_array();
+            }
+            s.rms[c] += element.area * t * t;
+            s.max_discretisation[c] = s.max_discretisation[c].max(p.discretisation[c]);
+            s.max_form_factors[c] = s.max_form_factors[c].max(p.form_factors[c]);
+            s.max_visibility[c] = s.max_visibility[c].max(p.visibility[c]);
+            s.max_solver[c] = s.max_solver[c].max(p.solver[c]);
+        }
+    }
+    if area > 0.0 {
+        s.rms = s.rms.map(|x| (x / area).sqrt());
+    }
+    s
 }
 
 #[cfg(test)]

@@ -218,7 +218,7 @@ fn read_primitive(
     semantics.sort();
     assert_eq!(
         semantics,
-        ["COLOR_0", "NORMAL", "POSITION", "_RADIOSITY"],
+        ["COLOR_0", "NORMAL", "POSITION", "_ERROR", "_RADIOSITY"],
         "{what}"
     );
     let radiosity = primitive

@@ -31,7 +31,7 @@ fn bake_cube(args: &[&str]) -> Report {
 fn presets_set_their_knobs_and_order_the_work() {
     let mut last_evaluations = 0;
     let mut last_elements = 0;
-    for (quality, elements_per_wall, tolerance, samples) in [
+    for (quality, elements_per_wall, max_error, samples) in [
         ("draft", 5, 1e-2, 49),
         ("normal", 10, 1e-3, 121),
         ("high", 19, 1e-4, 961),
@@ -40,12 +40,21 @@ fn presets_set_their_knobs_and_order_the_work() {
         let o = &r.options;
         assert_eq!(o["quality"], quality);
         assert_eq!(o["ff_estimator"], "auto");
-        assert_eq!(o["ff_tolerance"], tolerance);
+        assert_eq!(o["max_error"], max_error);
+        let accuracy = r.accuracy.as_ref().expect("an accuracy object");
+        assert_eq!(accuracy.max_error, max_error);
+        assert_eq!(accuracy.rho_max, 0.75, "the cube's brightest wall");
         assert_eq!(o["visibility_samples"], samples);
         assert_eq!(r.counts.elements, 6 * elements_per_wall * elements_per_wall);
         // The cube needs no shadow rays at any quality.
         assert_eq!(r.counts.rays_cast, 0);
         if r.transport.kind == "dense" {
+            // The dense transport's tolerance comes from the target and ρ_max (1.9e-3 for
+            // draft, 1.9e-4 for normal).
+            let tau = bake_core::accuracy::pair_tolerance(max_error, 0.75);
+            assert_eq!(o["ff_tolerance"], tau);
+            assert_eq!(o["ff_tolerance_from_max_error"], true);
+            assert_eq!(accuracy.ff_tolerance, Some(tau));
             assert!(r.counts.kernel_evaluations > last_evaluations, "{quality}");
         } else {
             // `high` puts 2 166 elements on the cube, above the crossover: linear links need
@@ -54,6 +63,9 @@ fn presets_set_their_knobs_and_order_the_work() {
             assert_eq!(quality, "high");
             assert_eq!(r.transport.kind, "hierarchical");
             assert_eq!(o["link_tolerance"], 0.002);
+            // The hierarchy's links keep the preset's per-pair tolerance.
+            assert_eq!(o["ff_tolerance"], 1e-4);
+            assert_eq!(o["ff_tolerance_from_max_error"], false);
             assert!(r.counts.links > 0);
         }
         assert!(r.counts.elements > last_elements);
@@ -85,6 +97,25 @@ fn explicit_options_override_the_preset() {
     let r = bake_cube(&["--ff-tolerance", "0.05"]);
     assert_eq!(r.options["ff_estimator"], "auto");
     assert_eq!(r.options["ff_tolerance"], 0.05);
+    assert_eq!(r.options["ff_tolerance_from_max_error"], false);
+    assert_eq!(r.accuracy.as_ref().and_then(|a| a.ff_tolerance), None);
+
+    // --max-error sets the per-pair tolerance (ρ_max = 0.75), --ff-tolerance overrides it.
+    let r = bake_cube(&["--max-error", "1e-2", "--subdiv", "3"]);
+    assert_eq!(r.options["max_error"], 1e-2);
+    assert_eq!(
+        r.options["ff_tolerance"],
+        bake_core::accuracy::pair_tolerance(1e-2, 0.75)
+    );
+    let r = bake_cube(&[
+        "--max-error",
+        "1e-2",
+        "--ff-tolerance",
+        "0.05",
+        "--subdiv",
+        "3",
+    ]);
+    assert_eq!(r.options["ff_tolerance"], 0.05);
 
     let r = bake_cube(&["--ff-estimator", "point-polygon", "--ff-points", "7"]);
     assert_eq!(r.options["ff_points"], 7);
@@ -104,7 +135,8 @@ fn default_auto_estimator_stays_close_to_the_contour_integral() {
             worst = worst.max((a.b[band] - e.b[band]).abs() / e.b[band]);
         }
     }
-    // Each F_ij within 1e-3 relative; b inherits at most that (measured 3.4e-6).
+    // --max-error 1e-3: each F_ij within 1.9e-4 relative (ρ_max = 0.75), b within 1e-3.
     assert!(worst < 1e-3, "{worst:e}");
+    eprintln!("default vs contour: {worst:.2e}");
     assert!(auto.counts.kernel_evaluations < exact.counts.kernel_evaluations);
 }

@@ -5,12 +5,16 @@
 //! exactly the same bake: [`Settings::resolve`] turns a [`Request`] (the user's options) and
 //! its quality preset into settings once, and [`run`] performs the stages, gathers ρ and e per
 //! element, adds the punctual lights' first reflection `ρ E / π` to e (the paper's §2 E(j)),
-//! chooses the transport, solves, and times every stage.
+//! chooses the transport, derives the dense transport's per-pair form-factor tolerance from
+//! the target error of `b` ([`accuracy`]), solves, estimates each element's error
+//! ([`error`]), and times every stage.
 //!
 //! It is not the importer or the exporter (the caller reads the scene and writes the outputs)
 //! and knows no file formats or command-line syntax. It is the only crate that knows the
 //! presets ([`presets`]).
 
+pub mod accuracy;
+pub mod error;
 pub mod presets;
 mod settings;
 
@@ -19,7 +23,8 @@ pub use settings::{
     HIERARCHICAL_SOLVE_TOLERANCE,
 };
 
-use form_factor::{FormFactors, Occluders, Occlusion};
+pub use accuracy::Accuracy;
+use form_factor::{Estimator, FormFactors, Occluders, Occlusion};
 use importer::Scene;
 use mesher::ElementMesh;
 use solver::{EnergyBalance, Solution, SolveError, BANDS};
@@ -39,6 +44,9 @@ pub enum BakeError {
     TooLarge(String),
     #[error("no solution: {0}")]
     Solve(SolveError),
+    /// The solver's refusal with what about this scene or these options caused it.
+    #[error("no solution: {error}; {hint}")]
+    Unsolvable { error: SolveError, hint: String },
     #[error("internal error: {0}")]
     Internal(SolveError),
     #[error("{path}: {source}")]
@@ -129,6 +137,13 @@ pub struct Bake {
     pub counts: Counts,
     pub effects: visibility::Effects,
     pub transport: TransportChoice,
+    /// Per element: the estimated bound on `|b − b̄|` and its parts ([`error`]).
+    pub error: Vec<error::Parts>,
+    /// The form-factor estimator the bake used (under the dense transport with `auto`, its
+    /// tolerance is the one the target chose).
+    pub estimator: Estimator,
+    /// The target error of `b`, the tolerance it chose and the bound the solve leaves.
+    pub accuracy: Accuracy,
     /// Seconds per stage, in pipeline order (`mesh`, `visibility_setup`, `form_factors`,
     /// `solve`, ...).
     pub timings: Vec<(&'static str, f64)>,
@@ -153,7 +168,7 @@ pub fn peak_rss_mib_now() -> Option<f64> {
 impl Bake {
     /// The report's `options`: the settings as resolved, with the transport used.
     pub fn options_json(&self, settings: &Settings) -> serde_json::Value {
-        settings.to_json(self.transport.kind)
+        settings.to_json(self.transport.kind, self.estimator)
     }
 }
 
@@ -188,6 +203,7 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     let mesh = mesher::mesh(&scene.polygons, settings.subdivision)?;
     let n = mesh.elements.len();
     let (rho, emission) = element_values(scene, &mesh);
+    let rho_max = rho.iter().flatten().copied().fold(0.0f64, f64::max);
     if scene.lights.is_empty() && emission.iter().all(|x| x.iter().all(|&v| v == 0.0)) {
         warnings.push("the scene has no emitters and no lights: every radiosity is 0".to_string());
     }
@@ -238,6 +254,15 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                 .to_string(),
         );
     }
+    // The dense transport's estimator: `auto`'s tolerance from the target and ρ_max.
+    let estimator = match transport.kind {
+        TransportKind::Hierarchical => settings.estimator,
+        _ => settings.dense_estimator(rho_max),
+    };
+    // Polygons some polygon may shadow (shadow rays decided part of their light), and the
+    // rays per pair, for the error estimate.
+    let mut sampled_polygons = vec![false; scene.polygons.len()];
+    let mut samples = 0;
     let (solution, irradiance, energy, counts, effects) = if dark {
         transport.reason = format!(
             "{}; not built: nothing emits or reflects direct light, so b = 0 exactly",
@@ -312,7 +337,12 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                         );
                         progress.finish();
                         built.map_err(|e| match e {
-                            LinkError::Solve(e) => BakeError::Solve(e),
+                            LinkError::Solve(e) => explain_refusal(
+                                BakeError::Solve(e),
+                                settings,
+                                settings.estimator,
+                                rho_max,
+                            ),
                             e => BakeError::TooLarge(e.to_string()),
                         })?
                     }
@@ -356,7 +386,13 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                         )
                     },
                 };
-                let solution = solve_with(&h, solve, &rho, &source, progress)?;
+                let solution = solve_with(&h, solve, &rho, &source, progress)
+                    .map_err(|e| explain_refusal(e, settings, settings.estimator, rho_max))?;
+                if s.pairs_occludable > 0 {
+                    // The hierarchy keeps no per-polygon record: every element is charged.
+                    sampled_polygons.fill(true);
+                    samples = settings.link_samples;
+                }
                 stage("solve", &mut lap);
                 let (irradiance, energy) =
                     finish(&h, &mesh, &rho, &emission, &external, &solution, settings)?;
@@ -373,9 +409,17 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                 let occludable = occluders.occludable_pairs_with_progress(&|k| progress.advance(k));
                 progress.finish();
                 let effects = occludable.effects();
+                for &(p, q) in occludable.pairs() {
+                    for k in [p, q] {
+                        if let Some(s) = sampled_polygons.get_mut(k as usize) {
+                            *s = true;
+                        }
+                    }
+                }
+                samples = settings.visibility_samples;
                 stage("occludable_pairs", &mut lap);
                 let mut form_factors =
-                    FormFactors::new(&mesh, settings.contour).with_estimator(settings.estimator);
+                    FormFactors::new(&mesh, settings.contour).with_estimator(estimator);
                 if effects.occlusion {
                     form_factors = form_factors.with_occlusion(Occlusion {
                         occluders: &occluders,
@@ -401,13 +445,14 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                 };
                 let f = solver::DenseMatrix::new(n, &matrix.data)
                     .map_err(BakeError::Internal)?
-                    .with_accuracy(settings.estimator.row_sum_accuracy());
+                    .with_accuracy(estimator.row_sum_accuracy());
                 let solution = match solve {
                     Solve::Direct => {
-                        solver::solve_direct(&f, &rho, &source).map_err(BakeError::Solve)?
+                        solver::solve_direct(&f, &rho, &source).map_err(BakeError::Solve)
                     }
-                    _ => solve_with(&f, solve, &rho, &source, progress)?,
-                };
+                    _ => solve_with(&f, solve, &rho, &source, progress),
+                }
+                .map_err(|e| explain_refusal(e, settings, estimator, rho_max))?;
                 stage("solve", &mut lap);
                 let (irradiance, energy) =
                     finish(&f, &mesh, &rho, &emission, &external, &solution, settings)?;
@@ -417,7 +462,53 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     };
     stage("energy", &mut lap);
 
+    let row_sum_accuracy = estimator.row_sum_accuracy();
+    let chosen_tolerance = match estimator {
+        Estimator::Auto { tolerance }
+            if settings.derive_tolerance && transport.kind != TransportKind::Hierarchical =>
+        {
+            Some(tolerance)
+        }
+        _ => None,
+    };
+    let accuracy = Accuracy {
+        max_error: settings.max_error,
+        rho_max,
+        chosen_tolerance,
+        row_sum_accuracy,
+        condition_bound: accuracy::condition_bound(rho_max, row_sum_accuracy),
+        error_bound: solution
+            .condition
+            .map(|c| c.map(|c| c * rho_max * row_sum_accuracy)),
+    };
+
+    let sampled: Vec<bool> = mesh
+        .elements
+        .iter()
+        .map(|e| sampled_polygons.get(e.polygon as usize) == Some(&true))
+        .collect();
+    let error = error::estimate(&error::Inputs {
+        mesh: &mesh,
+        b: &solution.b,
+        rho: &rho,
+        source: &source,
+        row_sum_accuracy,
+        condition: solution.condition.map(|c| c.unwrap_or(1.0)),
+        rho_max,
+        residual: [0, 1, 2].map(|c| {
+            if solution.residual_relative[c] {
+                solution.residual[c]
+            } else {
+                0.0
+            }
+        }),
+        sampled: &sampled,
+        samples,
+    });
+    stage("error_estimate", &mut lap);
+
     Ok(Bake {
+        error,
         mesh,
         rho,
         emission,
@@ -430,6 +521,8 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
         counts,
         effects,
         transport,
+        estimator,
+        accuracy,
         timings,
         peak_rss_mib,
         saved_links,
@@ -500,6 +593,36 @@ fn load_links(
     let file = std::fs::File::open(path).map_err(|e| error(transport::LinksFileError::Io(e)))?;
     let mut reader = std::io::BufReader::with_capacity(1 << 20, file);
     HierarchicalTransport::load(&scene.polygons, mesh, key, &mut reader).map_err(error)
+}
+
+/// The solver's refusal of a dense system, with its cause: a reflectance of 1 (no finite
+/// answer whatever the accuracy; glTF's default material is ρ = 1), or a per-pair tolerance
+/// given by the user that is too loose for this scene's conditioning.
+fn explain_refusal(
+    error: BakeError,
+    settings: &Settings,
+    estimator: Estimator,
+    rho_max: f64,
+) -> BakeError {
+    let BakeError::Solve(error @ SolveError::Singular { .. }) = error else {
+        return error;
+    };
+    let hint = if rho_max >= 1.0 {
+        "a surface reflects everything (rho = 1) and no accuracy makes the answer finite:          lower its reflectance (glTF's default material, without baseColorFactor, has rho = 1)"
+            .to_string()
+    } else if !settings.derive_tolerance
+        && estimator.row_sum_accuracy() > form_factor::ROW_SUM_ACCURACY
+    {
+        let tolerance = estimator.row_sum_accuracy();
+        format!(
+            "the largest reflectance is {rho_max}, so the form factors' stated accuracy              {tolerance:e} can change the answer entirely; give a smaller --ff-tolerance (or              none, and --max-error sets it: {:e} for {:e})",
+            accuracy::pair_tolerance(settings.max_error, rho_max),
+            settings.max_error
+        )
+    } else {
+        return BakeError::Solve(error);
+    };
+    BakeError::Unsolvable { error, hint }
 }
 
 /// GMRES or the bounce series through any operator (`Solve::Direct` needs the matrix).

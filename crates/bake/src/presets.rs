@@ -1,8 +1,10 @@
 //! `--quality draft|normal|high`: one knob for the accuracy–time trade. Each preset fixes the
-//! element size (relative to the scene), the form-factor estimator and its tolerance, and the
-//! shadow rays per occludable pair; explicit options override it. The values were chosen from
-//! the Pareto front measured by `tools/accuracy-report` on the paper's cube and the Cornell
-//! box; `docs/accuracy.md` lists each preset's error and time there.
+//! element size (relative to the scene), the form-factor estimator and its tolerance (the
+//! hierarchical transport's; the dense transport derives its own from `max_error`), the
+//! target relative error of `b`, and the shadow rays per occludable pair; explicit options
+//! override it. The values were chosen from the Pareto front measured by
+//! `tools/accuracy-report` on the paper's cube and the Cornell box; `docs/accuracy.md` lists
+//! each preset's error and time there.
 
 use form_factor::Estimator;
 use importer::Polygon;
@@ -30,6 +32,7 @@ impl Quality {
     pub fn preset(self) -> Preset {
         match self {
             Quality::Draft => Preset {
+                max_error: 1e-2,
                 elements_per_diagonal: 8.0,
                 estimator: Estimator::Auto { tolerance: 1e-2 },
                 visibility_samples: 49,
@@ -38,6 +41,7 @@ impl Quality {
                 light_samples: 4,
             },
             Quality::Normal => Preset {
+                max_error: 1e-3,
                 elements_per_diagonal: 16.0,
                 estimator: Estimator::Auto { tolerance: 1e-3 },
                 visibility_samples: 121,
@@ -46,6 +50,7 @@ impl Quality {
                 light_samples: 16,
             },
             Quality::High => Preset {
+                max_error: 1e-4,
                 elements_per_diagonal: 32.0,
                 estimator: Estimator::Auto { tolerance: 1e-4 },
                 visibility_samples: 961,
@@ -60,6 +65,10 @@ impl Quality {
 /// The knob values one preset sets.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Preset {
+    /// Target relative error of `b` (`--max-error`): the dense transport's per-pair tolerance
+    /// for `auto` is derived from it and the scene's largest reflectance
+    /// ([`crate::accuracy::pair_tolerance`]).
+    pub max_error: f64,
     /// Elements no longer than the scene's bounding-box diagonal divided by this.
     pub elements_per_diagonal: f64,
     /// Form-factor estimator (and its tolerance).
@@ -96,6 +105,7 @@ mod tests {
         };
         for pair in Quality::ALL.windows(2) {
             let (a, b) = (pair[0].preset(), pair[1].preset());
+            assert!(a.max_error > b.max_error);
             assert!(a.elements_per_diagonal < b.elements_per_diagonal);
             assert!(tolerance(a) > tolerance(b));
             assert!(a.visibility_samples < b.visibility_samples);

@@ -78,6 +78,8 @@ pub struct Request {
     pub contour: ContourOptions,
     pub ff_estimator: Option<EstimatorKind>,
     pub ff_tolerance: Option<f64>,
+    /// `--max-error`: target relative error of `b` (the preset's when `None`).
+    pub max_error: Option<f64>,
     /// Points per triangle of `point-polygon` (1, 3 or 7).
     pub ff_points: u32,
     pub visibility_samples: Option<u32>,
@@ -106,6 +108,7 @@ impl Default for Request {
             contour: ContourOptions::default(),
             ff_estimator: None,
             ff_tolerance: None,
+            max_error: None,
             ff_points: 3,
             visibility_samples: None,
             solver: None,
@@ -133,7 +136,15 @@ pub struct Settings {
     pub quality: Quality,
     pub subdivision: Subdivision,
     pub contour: ContourOptions,
+    /// The estimator as given or preset; under the dense transport, when
+    /// [`Settings::derive_tolerance`], `auto`'s tolerance comes from `max_error` instead
+    /// ([`Settings::dense_estimator`]).
     pub estimator: Estimator,
+    /// Target relative error of `b` (`--max-error` or the preset's).
+    pub max_error: f64,
+    /// Whether the dense transport derives `auto`'s per-pair tolerance from `max_error` and
+    /// the scene's largest reflectance: no `--ff-tolerance` and no estimator other than `auto`.
+    pub derive_tolerance: bool,
     /// Shadow rays per occludable element pair (dense transport).
     pub visibility_samples: u32,
     /// The transport asked for (`Auto` is decided per scene by [`crate::run`]).
@@ -179,6 +190,13 @@ impl Settings {
                 "--bounces must be at most {}, got {k}",
                 crate::MAX_BOUNCES
             )));
+        }
+        if let Some(e) = request.max_error {
+            if !(e.is_finite() && e > 0.0 && e < 1.0) {
+                return Err(BakeError::Options(format!(
+                    "--max-error must be a relative error in (0, 1), got {e}"
+                )));
+            }
         }
         if let Some(k) = request.light_samples {
             if !(1..=1024).contains(&k) {
@@ -226,6 +244,9 @@ impl Settings {
             subdivision,
             contour: request.contour,
             estimator,
+            max_error: request.max_error.unwrap_or(preset.max_error),
+            derive_tolerance: request.ff_tolerance.is_none()
+                && matches!(request.ff_estimator, None | Some(EstimatorKind::Auto)),
             visibility_samples: request
                 .visibility_samples
                 .unwrap_or(preset.visibility_samples),
@@ -250,10 +271,23 @@ impl Settings {
         }
     }
 
+    /// The dense transport's estimator for a scene whose largest reflectance is `rho_max`:
+    /// `auto` with [`crate::accuracy::pair_tolerance`] of `max_error` when
+    /// [`Settings::derive_tolerance`], else [`Settings::estimator`]. Below
+    /// [`form_factor::MIN_TOLERANCE`] `auto` gives every pair the contour integral.
+    pub fn dense_estimator(&self, rho_max: f64) -> Estimator {
+        match self.estimator {
+            Estimator::Auto { .. } if self.derive_tolerance => Estimator::Auto {
+                tolerance: crate::accuracy::pair_tolerance(self.max_error, rho_max),
+            },
+            e => e,
+        }
+    }
+
     /// The resolved options for the report's `options` object, given the transport the bake
-    /// used (the CLI adds its output options to it).
-    pub fn to_json(&self, used: TransportKind) -> serde_json::Value {
-        let (estimator, ff_tolerance, ff_points) = match self.estimator {
+    /// used and the estimator it used (the CLI adds its output options to it).
+    pub fn to_json(&self, used: TransportKind, estimator: Estimator) -> serde_json::Value {
+        let (estimator, ff_tolerance, ff_points) = match estimator {
             Estimator::Contour => ("contour", None, None),
             Estimator::PointPolygon(rule) => ("point-polygon", None, Some(rule.points())),
             Estimator::PointPoint => ("point-point", None, None),
@@ -272,6 +306,9 @@ impl Settings {
         let hierarchical = used == TransportKind::Hierarchical;
         serde_json::json!({
             "quality": self.quality.name(),
+            "max_error": self.max_error,
+            "ff_tolerance_from_max_error": used != TransportKind::Hierarchical
+                && self.derive_tolerance,
             "subdivision": subdivision,
             "transport": used.name(),
             "transport_requested": self.transport.name(),

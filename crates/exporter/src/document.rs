@@ -18,6 +18,8 @@ pub(crate) const MATERIAL_NAME: &str = "bake_unlit";
 const UNLIT_EXTENSION: &str = "KHR_materials_unlit";
 /// The unclamped radiosity attribute (an application-specific attribute: leading `_`).
 pub(crate) const RADIOSITY_ATTRIBUTE: &str = "RADIOSITY";
+/// The estimated error bound of b per band (`_ERROR`: `gltf` adds the leading `_`).
+pub(crate) const ERROR_ATTRIBUTE: &str = "ERROR";
 
 /// The document and the content of its one buffer (empty when nothing was baked). With
 /// `bin_uri` the buffer refers to an external file (`.gltf`), without it is the GLB's
@@ -204,6 +206,13 @@ impl DocumentWriter {
             Checked::Valid(Semantic::Extras(RADIOSITY_ATTRIBUTE.into())),
             radiosity,
         );
+        if !data.error.is_empty() {
+            let error = self.add_vec3(&data.error, false);
+            attributes.insert(
+                Checked::Valid(Semantic::Extras(ERROR_ATTRIBUTE.into())),
+                error,
+            );
+        }
         if let Some(texcoords) = &data.texcoords {
             let uv = self.add_vec2(texcoords);
             attributes.insert(Checked::Valid(Semantic::TexCoords(0)), uv);

@@ -17,6 +17,8 @@ pub(crate) struct PrimitiveData {
     pub(crate) colors: Vec<[f32; 3]>,
     /// Unclamped radiosity.
     pub(crate) radiosity: Vec<[f32; 3]>,
+    /// The estimated error of b (`_ERROR`); empty when the bake has none.
+    pub(crate) error: Vec<[f32; 3]>,
     /// Textured materials: the base-colour texture's TEXCOORD set at each vertex (written as
     /// `TEXCOORD_0`).
     pub(crate) texcoords: Option<Vec<[f32; 2]>>,
@@ -67,6 +69,11 @@ pub(crate) fn build(bake: &Bake) -> Result<Vec<NodeMesh>, ExportError> {
         ),
         Shading::Flat => (None, None),
     };
+    // Smooth: each mesh vertex gets the largest error of the elements around it.
+    let vertex_error = match (bake.error, bake.shading) {
+        (Some(error), Shading::Smooth) => Some(vertex_maxima(bake.mesh, error)),
+        _ => None,
+    };
     let mut node_meshes: Vec<NodeMesh> = Vec::new();
     for (&(node, mesh, primitive), elements) in &groups {
         let space = NodeSpace::new(&bake.scene.layout.nodes[node].world, node)?;
@@ -81,6 +88,7 @@ pub(crate) fn build(bake: &Bake) -> Result<Vec<NodeMesh>, ExportError> {
             _ => ColourSource::Radiosity,
         };
         let mut writer = PrimitiveWriter::new(bake, &space, smoothed.as_deref(), colour);
+        writer.vertex_error = vertex_error.as_deref();
         for &element in elements {
             writer.add_element(element)?;
         }
@@ -139,6 +147,22 @@ fn group_elements(scene: &Scene, mesh: &ElementMesh) -> Groups {
     groups
 }
 
+/// Per mesh vertex: the band-wise maximum of `values` over the elements that have it as a
+/// corner.
+fn vertex_maxima(mesh: &ElementMesh, values: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    let mut out = vec![[0.0f64; 3]; mesh.vertices.len()];
+    for (element, value) in mesh.elements.iter().zip(values) {
+        for &v in element.corner_indices() {
+            if let Some(slot) = out.get_mut(v as usize) {
+                for c in 0..3 {
+                    slot[c] = slot[c].max(value[c]);
+                }
+            }
+        }
+    }
+    out
+}
+
 /// Rejects a bake whose parts do not fit together, so the rest can index freely.
 fn check_bake(bake: &Bake) -> Result<(), ExportError> {
     let mesh = bake.mesh;
@@ -161,6 +185,15 @@ fn check_bake(bake: &Bake) -> Result<(), ExportError> {
             return Err(ExportError::NonFinite {
                 what: format!("{}: irradiance {:?}", element_name(bake, i), h[i]),
             });
+        }
+    }
+    if let Some(error) = bake.error {
+        if error.len() != mesh.elements.len() {
+            return Err(invalid(format!(
+                "{} error values for {} elements",
+                error.len(),
+                mesh.elements.len()
+            )));
         }
     }
     if !bake.exposure.is_finite() {
@@ -289,6 +322,8 @@ struct PrimitiveWriter<'a> {
     /// Smooth shading: (polygon, mesh vertex) → output vertex, so a polygon's elements share
     /// vertices.
     shared: HashMap<(u32, u32), u32>,
+    /// Smooth shading with an error estimate: the largest error around each mesh vertex.
+    vertex_error: Option<&'a [[f64; 3]]>,
     data: PrimitiveData,
 }
 
@@ -310,6 +345,7 @@ impl<'a> PrimitiveWriter<'a> {
             smoothed,
             colour,
             shared: HashMap::new(),
+            vertex_error: None,
             data,
         }
     }
@@ -436,6 +472,22 @@ impl<'a> PrimitiveWriter<'a> {
                     ),
                 });
             }
+        }
+        if let Some(per_element) = self.bake.error {
+            let error = match self.vertex_error {
+                Some(per_vertex) => per_vertex[vertex as usize],
+                None => per_element[element],
+            };
+            let stored = to_f32(error);
+            if !all_finite_f32(&stored) {
+                return Err(ExportError::NonFinite {
+                    what: format!(
+                        "{}: _ERROR {stored:?} of mesh vertex {vertex} (as f32)",
+                        element_name(self.bake, element)
+                    ),
+                });
+            }
+            self.data.error.push(stored);
         }
         let [position, normal, color, radiosity] = attributes.map(|(_, stored)| stored);
         self.data.positions.push(position);

@@ -53,6 +53,10 @@ pub struct Bake<'a> {
     /// Irradiance H per element (`b = e + ρ H`): required when a material keeps its
     /// base-colour texture (its `COLOR_0` is H, so a viewer shows factor × texture × H).
     pub irradiance: Option<&'a [[f64; 3]]>,
+    /// Per element: the estimated bound on the error of b, written as the `_ERROR` vertex
+    /// attribute (unclamped, per band; the largest of the elements around each vertex, or the
+    /// element's own with flat shading). `None`: no `_ERROR`.
+    pub error: Option<&'a [[f64; 3]]>,
     pub shading: Shading,
     /// `COLOR_0 = clamp(value × exposure, 0, 1)`.
     pub exposure: f64,

@@ -23,7 +23,8 @@ use std::path::Path;
 
 /// The version of this report's layout (2: `solver.condition`, `solver.iterations`, the
 /// `iterative` method and the `energy` object; 4: `lights`, `energy.delivered`, elements'
-/// `direct`; 5: elements' `h`; 6: `elements_included`, `element_summary`).
+/// `direct`; 5: elements' `h`; 6: `elements_included`, `element_summary`, the `accuracy`
+/// object and elements' `error`).
 pub const SCHEMA_VERSION: u32 = 6;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -53,6 +54,10 @@ pub struct Report {
     /// The punctual lights the bake used (absent in older reports).
     #[serde(default)]
     pub lights: Vec<LightEntry>,
+    /// The target error of `b`, the form-factor tolerance it chose and the bound the solve
+    /// leaves (absent in older reports).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accuracy: Option<AccuracyInfo>,
     pub warnings: Vec<String>,
     pub polygons: Vec<PolygonEntry>,
     /// Which per-element data follow (absent in older reports: all).
@@ -230,6 +235,46 @@ pub struct SolverInfo {
     pub iterations: [u32; 3],
 }
 
+/// `--max-error` and what it led to.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AccuracyInfo {
+    /// Target relative error of `b`.
+    pub max_error: f64,
+    /// Largest reflectance of any element in any band.
+    pub rho_max: f64,
+    /// The per-pair form-factor tolerance the target chose (`null` when an explicit
+    /// estimator or `--ff-tolerance` set it, or under the hierarchical transport).
+    pub ff_tolerance: Option<f64>,
+    /// The accuracy of `F`'s row sums the estimator states (what the solver was told).
+    pub row_sum_accuracy: f64,
+    /// A-priori bound on `cond_∞(I − ρF)`: `(1 + ρ_max(1 + a))/(1 − ρ_max(1 + a))` for that
+    /// accuracy `a` (`null`: unbounded, ρ_max = 1).
+    pub condition_bound: Option<f64>,
+    /// Per band after the solve: the condition estimate × ρ_max × the row-sum accuracy, the
+    /// relative error of `b` the form factors' accuracy can cause (`null` when the band was
+    /// not solved as a linear system).
+    pub error_bound: [Option<f64>; 3],
+    /// The elements' error estimates summarised (absent in older reports).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<ErrorSummary>,
+}
+
+/// The per-element error estimates of a bake, per band: largest, area-weighted RMS, where the
+/// largest is, and the largest of each part.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ErrorSummary {
+    pub max: [f64; 3],
+    pub rms: [f64; 3],
+    /// Per band: the element with the largest estimate and its centroid.
+    pub max_element: [usize; 3],
+    pub max_centroid: [[f64; 3]; 3],
+    /// Per band: the largest discretisation, form-factor, visibility and solver part.
+    pub max_discretisation: [f64; 3],
+    pub max_form_factors: [f64; 3],
+    pub max_visibility: [f64; 3],
+    pub max_solver: [f64; 3],
+}
+
 /// One punctual light the bake used, in world space, and what its direct light took.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LightEntry {
@@ -331,6 +376,10 @@ pub struct ElementEntry {
     /// lightmap, or a textured material, whose vertex-bake `COLOR_0` is H).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub h: Option<[f64; 3]>,
+    /// The estimated bound on `|b − b̄|` per band, `b̄` the element's area average of the
+    /// exact continuous radiosity (absent in older reports).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<[f64; 3]>,
 }
 
 impl Report {
@@ -356,6 +405,7 @@ impl Report {
             effects: Effects::default(),
             transport: TransportInfo::default(),
             lights: Vec::new(),
+            accuracy: None,
             warnings: scene.warnings.clone(),
             polygons: Report::polygons_from(scene),
             elements_included: ElementsIncluded::All,
@@ -431,6 +481,7 @@ impl Report {
                     b: *b,
                     direct: [0.0; 3],
                     h: None,
+                    error: None,
                 })
             })
             .collect()
@@ -501,6 +552,12 @@ fn check_finite(report: &Report) -> Result<(), ExportError> {
                 element_name(report, i)
             ));
         }
+        if let Some(error) = element.error.filter(|e| !all_finite(e)) {
+            return not_finite(format!(
+                "report {}: error {error:?}",
+                element_name(report, i)
+            ));
+        }
     }
     for light in &report.lights {
         let values = light
@@ -534,6 +591,28 @@ fn check_finite(report: &Report) -> Result<(), ExportError> {
         ];
         if let Some((name, values)) = fields.iter().find(|(_, v)| !all_finite(&v[..])) {
             return not_finite(format!("report energy {name} {values:?}"));
+        }
+    }
+    if let Some(a) = &report.accuracy {
+        let values = [a.max_error, a.rho_max, a.row_sum_accuracy]
+            .into_iter()
+            .chain(a.ff_tolerance)
+            .chain(a.condition_bound)
+            .chain(a.error_bound.iter().flatten().copied())
+            .chain(a.error.iter().flat_map(|e| {
+                [
+                    e.max,
+                    e.rms,
+                    e.max_discretisation,
+                    e.max_form_factors,
+                    e.max_visibility,
+                    e.max_solver,
+                ]
+                .into_iter()
+                .flatten()
+            }));
+        if !values.into_iter().all(f64::is_finite) {
+            return not_finite(format!("report accuracy {a:?}"));
         }
     }
     Ok(())

@@ -20,6 +20,7 @@ fn bake(fixture: &Fixture, shading: Shading) -> Bake<'_> {
         mesh: &fixture.mesh,
         radiosity: &fixture.radiosity,
         irradiance: None,
+        error: None,
         shading,
         exposure: EXPOSURE,
     }
@@ -586,4 +587,75 @@ fn nothing_baked_gives_nodes_without_meshes_or_buffers() {
     assert_eq!(document.materials().count(), 0);
     assert_eq!(document.extensions_used().count(), 0);
     assert!(buffers.is_empty());
+}
+
+/// `_ERROR` holds each element's error estimate (flat) or, per vertex, the largest of the
+/// elements around it (smooth), unclamped; without estimates there is no `_ERROR`.
+#[test]
+fn error_attribute_is_the_largest_estimate_around_each_vertex() {
+    let fixture = fixture();
+    let n = fixture.mesh.elements.len();
+    // Distinct per element and band, some above 1 (unclamped).
+    let error: Vec<[f64; 3]> = (0..n)
+        .map(|i| {
+            let x = (i as f64 * 0.37).sin().abs() * 3.0;
+            [x, x * 0.5, x * 0.25 + 1e-3]
+        })
+        .collect();
+    let mesh = &fixture.mesh;
+    let mut around = vec![[0.0f64; 3]; mesh.vertices.len()];
+    for (e, v) in mesh.elements.iter().zip(&error) {
+        for &k in e.corner_indices() {
+            for c in 0..3 {
+                around[k as usize][c] = around[k as usize][c].max(v[c]);
+            }
+        }
+    }
+    let used: std::collections::BTreeSet<u32> = mesh
+        .elements
+        .iter()
+        .flat_map(|e| e.corner_indices().iter().copied())
+        .collect();
+    let sorted = |mut v: Vec<[f32; 3]>| {
+        v.sort_by(|a, b| a.partial_cmp(b).expect("finite"));
+        v
+    };
+    let f32s = |v: [f64; 3]| v.map(|x| x as f32);
+    for shading in [Shading::Smooth, Shading::Flat] {
+        let dir = tempfile::tempdir().expect("a temporary directory");
+        let with = Bake {
+            error: Some(&error),
+            ..bake(&fixture, shading)
+        };
+        let output = write_and_import(dir.path(), "baked.glb", &with);
+        let get = |buffer: gltf::Buffer| output.buffers.get(buffer.index()).map(|d| &d[..]);
+        let mut written = Vec::new();
+        for mesh in output.document.meshes() {
+            for primitive in mesh.primitives() {
+                let accessor = primitive
+                    .get(&Semantic::Extras("ERROR".into()))
+                    .expect("an _ERROR attribute");
+                written.extend(
+                    gltf::accessor::Iter::<[f32; 3]>::new(accessor, get).expect("_ERROR data"),
+                );
+            }
+        }
+        let expected: Vec<[f32; 3]> = match shading {
+            Shading::Smooth => used.iter().map(|&k| f32s(around[k as usize])).collect(),
+            Shading::Flat => mesh
+                .elements
+                .iter()
+                .zip(&error)
+                .flat_map(|(e, v)| std::iter::repeat_n(f32s(*v), e.sides as usize))
+                .collect(),
+        };
+        assert_eq!(sorted(written), sorted(expected), "{shading:?}");
+    }
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let output = write_and_import(dir.path(), "plain.glb", &bake(&fixture, Shading::Smooth));
+    for mesh in output.document.meshes() {
+        for primitive in mesh.primitives() {
+            assert!(primitive.get(&Semantic::Extras("ERROR".into())).is_none());
+        }
+    }
 }

@@ -15,6 +15,7 @@ fn bake<'a>(fixture: &'a Fixture, radiosity: &'a [[f64; 3]], shading: Shading) -
         mesh: &fixture.mesh,
         radiosity,
         irradiance: None,
+        error: None,
         shading,
         exposure: 1.0,
     }

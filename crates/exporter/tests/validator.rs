@@ -48,6 +48,7 @@ fn outputs_validate_without_errors_or_warnings() {
             mesh: &fixture.mesh,
             radiosity: &fixture.radiosity,
             irradiance: None,
+            error: None,
             shading,
             exposure: 0.9,
         };

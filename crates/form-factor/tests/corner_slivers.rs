@@ -24,27 +24,8 @@ use importer::Polygon;
 use mesher::{mesh, Subdivision};
 
 /// The scene of the report: quads `a` and `b` share vertex 2; the lamp is above.
-const OBJ: &str = "mtllib pair.mtl
-v 0.03826834261417389 0.09238795191049576 1.0
-v 0.03061467409133911 0.07391036301851273 1.100000023841858
-v 0.05656854435801506 0.05656854435801506 1.100000023841858
-v 0.0707106813788414 0.0707106813788414 1.0
-v 0.0 0.07999999821186066 1.100000023841858
-v 0.0 0.05000000074505806 1.2000000476837158
-v 0.019134171307086945 0.04619397595524788 1.2000000476837158
-v -0.5 -0.5 3.0
-v -0.5 0.5 3.0
-v 0.5 0.5 3.0
-v 0.5 -0.5 3.0
-o a
-f 1 2 3 4
-o b
-f 5 6 7 2
-o light
-usemtl lamp
-f 8 9 10 11
-";
-const MTL: &str = "newmtl lamp\nKd 0 0 0\nKe 10 10 10\n";
+const OBJ: &str = include_str!("data/cone-pair-f32.obj");
+const MTL: &str = include_str!("data/cone-pair.mtl");
 
 /// The scene's polygons as the importer reads them: a, b, the lamp.
 fn polygons() -> Vec<Polygon> {

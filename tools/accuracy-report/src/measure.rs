@@ -115,6 +115,8 @@ pub fn bake_once(scene: &Scene, setting: &Setting) -> Result<Run> {
     };
     let mut settings = bake_core::Settings::resolve(&request, &scene.polygons)?;
     settings.estimator = setting.estimator;
+    // The sweep measures each estimator and tolerance as given, not the one --max-error derives.
+    settings.derive_tolerance = false;
     settings.contour = setting.contour;
     settings.visibility_samples = setting.samples;
     settings.dense_solve = match setting.solve {
@@ -348,6 +350,26 @@ const SUBSAMPLES: usize = 4;
 /// Cornell box); on triangles each reference element is cut into 4 × 4 pieces credited to the
 /// element containing their centres.
 pub fn element_errors(coarse: &Field, reference: &Field, scene: &Scene) -> Errors {
+    let means = reference_means(coarse, reference, scene);
+    let floor = dark_floor(reference, scene);
+    let mut errors = Accumulator::default();
+    for (c, e) in coarse.mesh.elements.iter().enumerate() {
+        let Some(r) = means[c] else {
+            continue;
+        };
+        for band in 0..3 {
+            let err = (coarse.b[c][band] - r[band]).abs() / r[band].max(floor[band]);
+            if err.is_finite() {
+                errors.add(err, e.area);
+            }
+        }
+    }
+    errors.finish()
+}
+
+/// Per element of `coarse`: the area average of the reference over it, as
+/// [`element_errors`] computes it (`None` where no reference element overlaps it).
+pub fn reference_means(coarse: &Field, reference: &Field, scene: &Scene) -> Vec<Option<[f64; 3]>> {
     let polygons = &scene.polygons;
     let n = coarse.mesh.elements.len();
     let mut sum = vec![[0.0f64; 3]; n];
@@ -409,21 +431,9 @@ pub fn element_errors(coarse: &Field, reference: &Field, scene: &Scene) -> Error
             }
         }
     }
-    let floor = dark_floor(reference, scene);
-    let mut errors = Accumulator::default();
-    for (c, e) in coarse.mesh.elements.iter().enumerate() {
-        if area[c] == 0.0 {
-            continue;
-        }
-        for band in 0..3 {
-            let r = sum[c][band] / area[c];
-            let err = (coarse.b[c][band] - r).abs() / r.max(floor[band]);
-            if err.is_finite() {
-                errors.add(err, e.area);
-            }
-        }
-    }
-    errors.finish()
+    (0..n)
+        .map(|c| (area[c] > 0.0).then(|| sum[c].map(|s| s / area[c])))
+        .collect()
 }
 
 /// Per band, 5% of the area-weighted mean radiosity of the reference's non-emitting elements:
@@ -617,6 +627,83 @@ mod tests {
         }
     }
 
+    /// Issue 14: the per-element error estimate (`bake_core::error`) on the cube at
+    /// `--subdiv 7` (default options) against the continuous solution (the exact closed-form
+    /// solve at 48 × 48 per wall, averaged over each element). Prints the table; asserts that
+    /// at least 90% of element-bands are bounded and the median true/estimate is ≥ 0.1.
+    #[test]
+    #[ignore = "a 13 824-element closed-form reference: a minute in a release build"]
+    fn cube_7_error_estimate_bounds_the_true_error() {
+        let (bounded, median) = cube_7_error_estimate(48);
+        assert!(bounded >= 0.9, "{bounded}");
+        assert!(median >= 0.1, "{median}");
+    }
+
+    /// The same on the Cornell box: the default options at elements of diagonal/8 against
+    /// the accuracy report's converged reference (diagonal/24, contour, 961 rays, dense). A
+    /// benchmark: prints the table, asserts nothing (the reference's own error, ~3% RMS at
+    /// diagonal/12 against it, is of the size being measured).
+    #[test]
+    #[ignore = "the Cornell box reference: 30 s and more in a release build"]
+    fn cornell_error_estimate_against_the_converged_reference() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/cornell.gltf");
+        let cornell = Scene::load("cornell", &path).expect("cornell");
+        let size = |d| Subdivision::MaxSize(mesher::max_element_size(&cornell.polygons, d));
+        let run = |request: bake_core::Request| {
+            let settings =
+                bake_core::Settings::resolve(&request, &cornell.polygons).expect("settings");
+            bake_core::run(&cornell.source, &settings, &bake_core::Silent).expect("bake")
+        };
+        let fine = run(bake_core::Request {
+            subdivision: Some(size(24.0)),
+            ff_estimator: Some(bake_core::EstimatorKind::Contour),
+            visibility_samples: Some(961),
+            transport: bake_core::TransportKind::Dense,
+            ..bake_core::Request::default()
+        });
+        let reference = Field::new(&fine.mesh, &fine.solution.b);
+        for d in [8.0, 12.0] {
+            let bake = run(bake_core::Request {
+                subdivision: Some(size(d)),
+                ..bake_core::Request::default()
+            });
+            let coarse = Field::new(&bake.mesh, &bake.solution.b);
+            let means = reference_means(&coarse, &reference, &cornell);
+            println!(
+                "cornell diagonal/{d} ({} elements) against diagonal/24 ({} elements):\n{}",
+                bake.mesh.elements.len(),
+                fine.mesh.elements.len(),
+                estimate_table(&bake, &means)
+            );
+        }
+    }
+
+    /// The cube at `--subdiv 7` against the closed-form solve at `n × n` per wall averaged over
+    /// each element: the bounded fraction and the median true/estimate (and the table, printed).
+    fn cube_7_error_estimate(n: u32) -> (f64, f64) {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/cube.gltf");
+        let cube = Scene::load("cube", &path).expect("cube");
+        let ref_mesh = mesher::mesh(&cube.polygons, Subdivision::Count(n)).expect("mesh");
+        let ref_b = closed_form_solution(&cube, &ref_mesh).expect("reference");
+        let reference = Field::new(&ref_mesh, &ref_b);
+        let request = bake_core::Request {
+            subdivision: Some(Subdivision::Count(7)),
+            ..bake_core::Request::default()
+        };
+        let settings = bake_core::Settings::resolve(&request, &cube.polygons).expect("settings");
+        let bake = bake_core::run(&cube.source, &settings, &bake_core::Silent).expect("bake");
+        let coarse = Field::new(&bake.mesh, &bake.solution.b);
+        let means = reference_means(&coarse, &reference, &cube);
+        let table = estimate_table(&bake, &means);
+        println!(
+            "cube --subdiv 7 ({} elements) against {n} x {n}:\n{table}",
+            bake.mesh.elements.len()
+        );
+        bounded_and_median(&bake, &means, |p| p.total())
+    }
+
     #[test]
     fn bilinear_weights_reproduce_the_point_and_flag_outside() {
         let c = [
@@ -644,5 +731,78 @@ mod tests {
         let e = scanline_errors(&[[1.1, 2.0, 3.0], [1.0, 2.0, 3.3]], &[[1.0, 2.0, 3.0]; 2]);
         assert!((e.max - 0.1).abs() < 1e-12);
         assert!((e.rms - (0.02f64 / 6.0).sqrt()).abs() < 1e-12);
+    }
+
+    /// Fraction of element-bands with |b − reference| ≤ estimate, and the median of
+    /// |b − reference| / estimate over those with an estimate > 0.
+    fn bounded_and_median(
+        bake: &bake_core::Bake,
+        means: &[Option<[f64; 3]>],
+        estimate: impl Fn(&bake_core::error::Parts) -> [f64; 3],
+    ) -> (f64, f64) {
+        let (mut bounded, mut total, mut ratios) = (0usize, 0usize, Vec::new());
+        for (i, parts) in bake.error.iter().enumerate() {
+            let Some(r) = means[i] else { continue };
+            let est = estimate(parts);
+            for c in 0..3 {
+                let truth = (bake.solution.b[i][c] - r[c]).abs();
+                total += 1;
+                if truth <= est[c] {
+                    bounded += 1;
+                }
+                if est[c] > 0.0 {
+                    ratios.push(truth / est[c]);
+                }
+            }
+        }
+        ratios.sort_by(f64::total_cmp);
+        let median = ratios.get(ratios.len() / 2).copied().unwrap_or(0.0);
+        (bounded as f64 / total.max(1) as f64, median)
+    }
+
+    /// The estimate and each of its parts alone: bounded fraction, median and 10th/90th
+    /// percentiles of true/estimate, and the largest true error and estimate.
+    fn estimate_table(bake: &bake_core::Bake, means: &[Option<[f64; 3]>]) -> String {
+        type Pick = fn(&bake_core::error::Parts) -> [f64; 3];
+        let rows: [(&str, Pick); 5] = [
+            ("total", |p| p.total()),
+            ("discretisation", |p| p.discretisation),
+            ("form factors", |p| p.form_factors),
+            ("visibility", |p| p.visibility),
+            ("solver", |p| p.solver),
+        ];
+        let mut out = String::from(
+            "| estimate | bounded | median true/est | p10 | p90 | max true | max est |\n|---|---|---|---|---|---|---|\n",
+        );
+        for (name, pick) in rows {
+            let (mut ratios, mut max_true, mut max_est) = (Vec::new(), 0.0f64, 0.0f64);
+            for (i, parts) in bake.error.iter().enumerate() {
+                let Some(r) = means[i] else { continue };
+                let est = pick(parts);
+                for c in 0..3 {
+                    let truth = (bake.solution.b[i][c] - r[c]).abs();
+                    max_true = max_true.max(truth);
+                    max_est = max_est.max(est[c]);
+                    if est[c] > 0.0 {
+                        ratios.push(truth / est[c]);
+                    }
+                }
+            }
+            ratios.sort_by(f64::total_cmp);
+            let q = |f: f64| {
+                ratios
+                    .get(((ratios.len() as f64 * f) as usize).min(ratios.len().saturating_sub(1)))
+                    .copied()
+                    .unwrap_or(f64::NAN)
+            };
+            let (bounded, median) = bounded_and_median(bake, means, pick);
+            out += &format!(
+                "| {name} | {:.1}% | {median:.3} | {:.3} | {:.3} | {max_true:.3e} | {max_est:.3e} |\n",
+                bounded * 100.0,
+                q(0.1),
+                q(0.9)
+            );
+        }
+        out
     }
 }
