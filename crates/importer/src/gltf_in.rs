@@ -391,7 +391,7 @@ fn build_scene(
 }
 
 /// Per polygon whose material has a texture (decoded for ρ/e, or kept for the outputs) or
-/// whose primitive has COLOR_0: the source triangles it was made of, in world space, with
+/// whose primitive has COLOR_0 or TEXCOORD_1: the source triangles it was made of, in world space, with
 /// their texture coordinates (every set the primitive has) and colours. A glTF polygon is source triangle `face`, or the quad merged from
 /// `face` and `face + 1`.
 fn polygon_uvs(
@@ -419,10 +419,12 @@ fn polygon_uvs(
                 .get(&(o.mesh, o.primitive))
                 .and_then(Option::as_ref)
                 .ok_or_else(|| ImportError::Gltf(format!("mesh {} lost its primitive", o.mesh)))?;
-            if sets.is_empty() && kept == [false; 2] && local.colors.is_none() {
+            let present = [0, 1].map(|set| local.uvs.get(set).is_some_and(Option::is_some));
+            // A TEXCOORD_1 may be the authored lightmap layout (`--lightmap-uv`): kept for
+            // every polygon whose primitive has one.
+            if sets.is_empty() && kept == [false; 2] && local.colors.is_none() && !present[1] {
                 return Ok(None);
             }
-            let present = [0, 1].map(|set| local.uvs.get(set).is_some_and(Option::is_some));
             let world = layout.nodes[o.node].world;
             let count = if p.vertices.len() == 4 { 2 } else { 1 };
             let mut triangles = Vec::with_capacity(count);

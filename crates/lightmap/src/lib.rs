@@ -23,12 +23,14 @@
 //!
 //! Deterministic: the same input gives the same texels whatever the thread count.
 
+mod authored;
 mod chart;
 mod encode;
 mod field;
 mod pack;
 mod raster;
 
+pub use authored::{AuthoredUv, UvDecision, UvMode, MIN_PADDING};
 pub use chart::{PADDING, PAIR_GAP};
 pub use encode::{
     encode_exr, encode_png, linear_to_srgb, srgb_to_linear, PngLightmap, EXR_COMMENT,
@@ -91,7 +93,8 @@ pub struct Chart {
     /// polygon vertex, in the polygon's vertex order. `TEXCOORD_1 = uv / (width, height)`.
     pub uv: Vec<[f64; 2]>,
     /// The region the packer placed: the chart, its gutter and, for two triangles sharing a
-    /// rectangle, the other one. Regions never overlap.
+    /// rectangle, the other one. Regions never overlap. For a kept authored layout: the
+    /// chart's bounding box in whole texels (neighbours in one island share edges).
     pub region: Rect,
 }
 
@@ -127,6 +130,11 @@ pub struct Lightmap {
     /// The smoothed, welded H per mesh vertex the texels were reconstructed from.
     pub vertex_values: Vec<[f64; 3]>,
     pub stats: Stats,
+    /// Per primitive instance, in (node, mesh, primitive) order: whether its `TEXCOORD_1`
+    /// was kept as the layout, and if not why.
+    pub uv_decisions: Vec<UvDecision>,
+    /// Things the user should know (authored padding under [`MIN_PADDING`] texels).
+    pub warnings: Vec<String>,
     fields: Vec<Field>,
 }
 
@@ -139,17 +147,59 @@ pub enum LightmapError {
     InvalidData(String),
     #[error("the charts do not fit in a {max}×{max} atlas at any texel size (too many polygons)")]
     TooLarge { max: u32 },
+    /// `--lightmap-uv keep` with a `TEXCOORD_1` that is not a usable layout.
+    #[error("cannot keep the input's TEXCOORD_1 as the lightmap layout: {0}")]
+    AuthoredUv(String),
     #[error("cannot encode the {what} lightmap: {message}")]
     Encode { what: &'static str, message: String },
 }
 
 /// Builds the lightmap of `polygons` (the importer's polygons, world space) from their element
-/// mesh and per-element irradiance H (3 bands, same units as e and b).
+/// mesh and per-element irradiance H (3 bands, same units as e and b), with generated charts.
 pub fn build(
     polygons: &[Polygon],
     mesh: &ElementMesh,
     element_irradiance: &[[f64; 3]],
     options: &Options,
+) -> Result<Lightmap, LightmapError> {
+    let none = AuthoredUv::none(polygons.len());
+    build_with(
+        polygons,
+        mesh,
+        element_irradiance,
+        options,
+        &none,
+        UvMode::Generate,
+    )
+}
+
+/// Whether each primitive's `TEXCOORD_1` would be kept, without building anything: for
+/// `UvMode::Keep`, an error naming the first primitive whose layout is not usable.
+pub fn plan_uv(
+    polygons: &[Polygon],
+    authored: &AuthoredUv,
+    mode: UvMode,
+    options: &Options,
+) -> Result<Vec<UvDecision>, LightmapError> {
+    Ok(authored::plan(
+        polygons,
+        authored,
+        mode,
+        options.texel_size,
+        options.max_size,
+    )?
+    .decisions)
+}
+
+/// [`build`] with the input's authored `TEXCOORD_1` (`AuthoredUv::from_scene`) as the
+/// layout where `mode` says so (see [`UvMode`]).
+pub fn build_with(
+    polygons: &[Polygon],
+    mesh: &ElementMesh,
+    element_irradiance: &[[f64; 3]],
+    options: &Options,
+    authored: &AuthoredUv,
+    mode: UvMode,
 ) -> Result<Lightmap, LightmapError> {
     if !(options.texel_size.is_finite() && options.texel_size > 0.0) {
         return Err(LightmapError::InvalidOptions(format!(
@@ -187,6 +237,23 @@ pub fn build(
     let (vertex_values, welded_vertices) =
         smooth_and_weld(polygons, mesh, &fields, element_irradiance);
 
+    let plan = authored::plan(
+        polygons,
+        authored,
+        mode,
+        options.texel_size,
+        options.max_size,
+    )?;
+    if let Some(kept) = plan.kept {
+        return Ok(kept_lightmap(
+            kept,
+            options,
+            fields,
+            vertex_values,
+            welded_vertices,
+            plan.decisions,
+        ));
+    }
     let (texel_size, regions, packing, reductions) = fit(polygons, options)?;
     let width = packing.width as usize;
     let mut texels = vec![[0.0f32; 3]; width * packing.height as usize];
@@ -258,8 +325,90 @@ pub fn build(
         charts,
         vertex_values,
         stats,
+        uv_decisions: plan.decisions,
+        warnings: Vec::new(),
         fields,
     })
+}
+
+/// The lightmap of an authored layout: one square atlas, every chart where its TEXCOORD_1
+/// puts it.
+fn kept_lightmap(
+    kept: authored::Kept,
+    options: &Options,
+    fields: Vec<Field>,
+    vertex_values: Vec<[f64; 3]>,
+    welded_vertices: usize,
+    uv_decisions: Vec<UvDecision>,
+) -> Lightmap {
+    let side = kept.side;
+    let block = raster::atlas_texels(side, &kept.charts, &fields, &vertex_values);
+    let n = side as usize;
+    let mut stats = Stats {
+        welded_vertices,
+        reductions: kept.reductions,
+        ..Stats::default()
+    };
+    for (k, t) in block.coverage.iter().enumerate() {
+        match t {
+            Texel::Chart(p) => {
+                stats.chart_texels += 1;
+                let c = DVec2::new((k % n) as f64 + 0.5, (k / n) as f64 + 0.5);
+                stats.interior_texels += u64::from(raster::inside(c, &kept.charts[*p as usize]));
+            }
+            Texel::Gutter(_) => stats.gutter_texels += 1,
+            Texel::Unused => {}
+        }
+    }
+    stats.occupancy = stats.chart_texels as f64 / (n * n) as f64;
+    let charts = kept
+        .charts
+        .iter()
+        .enumerate()
+        .map(|(polygon, uv)| {
+            let (lo, hi) = uv.iter().fold(
+                (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+                |(lo, hi), q| (lo.min(*q), hi.max(*q)),
+            );
+            let x = lo.x.floor().max(0.0) as u32;
+            let y = lo.y.floor().max(0.0) as u32;
+            let right = (hi.x.ceil().max(0.0) as u32).clamp(x, side);
+            let bottom = (hi.y.ceil().max(0.0) as u32).clamp(y, side);
+            Chart {
+                polygon,
+                uv: uv.iter().map(|p| p.to_array()).collect(),
+                region: Rect {
+                    x,
+                    y,
+                    width: right - x,
+                    height: bottom - y,
+                },
+            }
+        })
+        .collect();
+    let warnings = kept
+        .padding
+        .map(|gap| {
+            format!(
+                "the input's TEXCOORD_1 islands are {gap:.2} texels apart at {side}×{side} (under {MIN_PADDING}): filtering mixes their light"
+            )
+        })
+        .into_iter()
+        .collect();
+    Lightmap {
+        width: side,
+        height: side,
+        texel_size: kept.texel_size,
+        requested_texel_size: options.texel_size,
+        texels: block.values,
+        coverage: block.coverage,
+        charts,
+        vertex_values,
+        stats,
+        uv_decisions,
+        warnings,
+        fields,
+    }
 }
 
 fn fields(polygons: &[Polygon], mesh: &ElementMesh) -> Result<Vec<Field>, LightmapError> {
@@ -352,7 +501,7 @@ fn fit(polygons: &[Polygon], options: &Options) -> Result<Fitted, LightmapError>
     Err(too_large)
 }
 
-fn polygon_area(p: &Polygon) -> f64 {
+pub(crate) fn polygon_area(p: &Polygon) -> f64 {
     let v = &p.vertices;
     (1..v.len() - 1)
         .map(|k| (v[k] - v[0]).cross(v[k + 1] - v[0]).length() / 2.0)
