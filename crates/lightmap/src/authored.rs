@@ -252,7 +252,7 @@ pub(crate) fn plan(
             }
             g
         };
-        let check = check_layout(&uv, f64::from(side));
+        let check = check_layout(&uv, Some(f64::from(side)));
         if let Some((a, b)) = check.overlap {
             let (ga, gb) = (group_of[a], group_of[b]);
             let name = |g: usize| {
@@ -342,13 +342,13 @@ struct Tri {
     hi: DVec2,
 }
 
-/// Overlaps between the fan triangles of `uv` (UV space, [0, 1]²) and the smallest gap
-/// between islands at `side` texels per unit. A grid of cells over [0, 1]², each triangle in
+/// Overlaps between the fan triangles of `uv` (UV space, [0, 1]²) and, given `side`
+/// (texels per unit), the smallest gap between islands. A grid of cells over [0, 1]², each triangle in
 /// every cell its box (grown by the padding) meets; a pair is tested in the first cell both
 /// boxes share, so once. A degenerate triangle (no UV area) counts as overlapping itself.
-pub(crate) fn check_layout(uv: &[&[DVec2]], side: f64) -> LayoutCheck {
+pub(crate) fn check_layout(uv: &[&[DVec2]], side: Option<f64>) -> LayoutCheck {
     let islands = islands(uv);
-    let pad = MIN_PADDING / side;
+    let pad = side.map_or(0.0, |side| MIN_PADDING / side);
     let mut tris = Vec::new();
     for (p, t) in uv.iter().enumerate() {
         for k in 1..t.len().saturating_sub(1) {
@@ -419,7 +419,7 @@ pub(crate) fn check_layout(uv: &[&[DVec2]], side: f64) -> LayoutCheck {
                             continue;
                         }
                     }
-                    if a.island != b.island {
+                    if side.is_some() && a.island != b.island {
                         gap = gap.min(triangle_distance(&a.corners, &b.corners));
                     }
                 }
@@ -428,7 +428,7 @@ pub(crate) fn check_layout(uv: &[&[DVec2]], side: f64) -> LayoutCheck {
         })
         .collect();
     let overlap = found.iter().filter_map(|f| f.0).min();
-    let gap = found.iter().map(|f| f.1).fold(f64::INFINITY, f64::min) * side;
+    let gap = found.iter().map(|f| f.1).fold(f64::INFINITY, f64::min) * side.unwrap_or(0.0);
     LayoutCheck {
         overlap,
         padding: (gap < MIN_PADDING).then_some(gap),
@@ -525,12 +525,12 @@ mod tests {
         let a = square(0.125, 0.125, 0.25);
         let b = square(0.25, 0.25, 0.25);
         let uv = [a.as_slice(), b.as_slice()];
-        let check = check_layout(&uv, 100.0);
+        let check = check_layout(&uv, Some(100.0));
         assert_eq!(check.overlap, Some((0, 1)));
         // Side by side: no overlap, the gap is 0.01 × 100 = 1 texel.
         let c = square(0.385, 0.125, 0.25);
         let uv = [a.as_slice(), c.as_slice()];
-        let check = check_layout(&uv, 100.0);
+        let check = check_layout(&uv, Some(100.0));
         assert_eq!(check.overlap, None);
         let gap = check.padding.expect("under 2 texels");
         assert!((gap - 1.0).abs() < 1e-9, "{gap}");
@@ -538,7 +538,7 @@ mod tests {
         let d = square(0.375, 0.125, 0.25);
         let uv = [a.as_slice(), d.as_slice()];
         assert_eq!(
-            check_layout(&uv, 100.0),
+            check_layout(&uv, Some(100.0)),
             LayoutCheck {
                 overlap: None,
                 padding: None
@@ -547,7 +547,7 @@ mod tests {
         // Far apart at this resolution: no warning.
         let e = square(0.625, 0.625, 0.25);
         let uv = [a.as_slice(), e.as_slice()];
-        assert_eq!(check_layout(&uv, 100.0).padding, None);
+        assert_eq!(check_layout(&uv, Some(100.0)).padding, None);
     }
 
     #[test]
@@ -560,6 +560,6 @@ mod tests {
             DVec2::new(0.45, 0.4),
         ];
         let uv = [q.as_slice()];
-        assert_eq!(check_layout(&uv, 64.0).overlap, Some((0, 0)));
+        assert_eq!(check_layout(&uv, Some(64.0)).overlap, Some((0, 0)));
     }
 }

@@ -150,32 +150,33 @@ pub(crate) fn region_texels(
     out
 }
 
-/// Reconstructs a square atlas of `side` texels laid out by authored charts (texel space),
-/// which may share texels with their neighbours in one island: a footprint texel belongs to
+/// Reconstructs a whole atlas laid out by per-polygon charts (texel space; authored, or
+/// grouped charts), which may share texels with their neighbours in one island or chart: a footprint texel belongs to
 /// the chart nearest its centre (0 inside; ties to the lower polygon), the gutter grows from
 /// the footprints in [`DILATION_RADIUS`] rings, each texel taking the nearest footprint
 /// texel among its 8 neighbours' sources (ties to the lower index).
 pub(crate) fn atlas_texels(
-    side: u32,
+    width: u32,
+    height: u32,
     charts: &[Vec<DVec2>],
     fields: &[Field],
     values: &[[f64; 3]],
 ) -> RegionTexels {
     use rayon::prelude::*;
-    let n = side as usize;
-    let mut claim: Vec<(f64, u32)> = vec![(f64::INFINITY, u32::MAX); n * n];
+    let (n, rows) = (width as usize, height as usize);
+    let mut claim: Vec<(f64, u32)> = vec![(f64::INFINITY, u32::MAX); n * rows];
     for (p, uv) in charts.iter().enumerate() {
         let (lo, hi) = uv.iter().fold(
             (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
             |(lo, hi), q| (lo.min(*q), hi.max(*q)),
         );
-        let range = |a: f64, b: f64| {
+        let range = |a: f64, b: f64, n: usize| {
             let first = (a - 1.5).floor().max(0.0) as usize;
             let last = ((b + 1.5).ceil().max(0.0) as usize).min(n);
             first..last
         };
-        for y in range(lo.y, hi.y) {
-            for x in range(lo.x, hi.x) {
+        for y in range(lo.y, hi.y, rows) {
+            for x in range(lo.x, hi.x, n) {
                 let c = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
                 if !in_footprint(c, uv) {
                     continue;
@@ -189,8 +190,8 @@ pub(crate) fn atlas_texels(
         }
     }
     let mut out = RegionTexels {
-        values: vec![[0.0; 3]; n * n],
-        coverage: vec![Texel::Unused; n * n],
+        values: vec![[0.0; 3]; n * rows],
+        coverage: vec![Texel::Unused; n * rows],
     };
     out.values
         .par_chunks_mut(n)
@@ -215,7 +216,7 @@ pub(crate) fn atlas_texels(
         .map(|(k, c)| if c.1 == u32::MAX { u32::MAX } else { k as u32 })
         .collect();
     for _ in 0..DILATION_RADIUS {
-        let next: Vec<u32> = (0..n * n)
+        let next: Vec<u32> = (0..n * rows)
             .into_par_iter()
             .map(|k| {
                 if source[k] != u32::MAX {
@@ -226,7 +227,7 @@ pub(crate) fn atlas_texels(
                 for dy in -1..=1 {
                     for dx in -1..=1 {
                         let (sx, sy) = (x + dx, y + dy);
-                        if sx < 0 || sy < 0 || sx >= n as i64 || sy >= n as i64 {
+                        if sx < 0 || sy < 0 || sx >= n as i64 || sy >= rows as i64 {
                             continue;
                         }
                         let s = source[sy as usize * n + sx as usize];
