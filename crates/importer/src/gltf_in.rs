@@ -341,6 +341,18 @@ fn build_scene(
             if !std::mem::replace(&mut checked[material_index], true) {
                 let name = describe("material", material.name.as_deref(), material_index);
                 check_material(material, &format!("{name} used by {label}"))?;
+                // Alpha cut-outs are not baked: the whole surface reflects and blocks light.
+                let mode = root.materials.get(material_index).map(|m| &m.alpha_mode);
+                let alpha = match mode {
+                    Some(Checked::Valid(gltf::json::material::AlphaMode::Mask)) => Some("MASK"),
+                    Some(Checked::Valid(gltf::json::material::AlphaMode::Blend)) => Some("BLEND"),
+                    _ => None,
+                };
+                if let Some(alpha) = alpha {
+                    warnings.push(format!(
+                        "{name}: alphaMode {alpha} is baked opaque (the whole surface reflects and blocks light)"
+                    ));
+                }
             }
             instances.push(Instance {
                 label,
