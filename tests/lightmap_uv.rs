@@ -1,4 +1,5 @@
-//! `--lightmap-uv`: the input's authored `TEXCOORD_1` as the lightmap layout.
+//! `--lightmap-uv`: the input's authored `TEXCOORD_1` as the lightmap layout; and grouped
+//! generated charts end to end.
 //!
 //! - A room from Blender (`tools/blender-lightmap-room`: Blender's own Lightmap Pack over all
 //!   objects into one texture space) baked with `keep`: every vertex of the lightmap glTF has
@@ -10,6 +11,10 @@
 //!   face's two sides), UVs outside [0, 1] and a material that samples TEXCOORD_1, each
 //!   naming the primitive and the reason, before the bake; `auto` generates charts for them
 //!   and says why; islands closer than 2 texels warn.
+//! - Grouped charts through the binary: a flat floor of 4 232 triangles under a point light
+//!   (one grouped chart), validator clean, and each triangle centroid away from the edge,
+//!   sampled from the written EXR through the written TEXCOORD_1, reads the closed form
+//!   H = I cos θ / (π d²) within 1%.
 
 mod common;
 
@@ -468,4 +473,116 @@ fn texcoord_at(polygon: &importer::Polygon, uv: &[DVec2], point: DVec3) -> DVec2
         }
     }
     best.1
+}
+
+// ---- grouped charts through the binary ----
+
+/// A flat 10 × 10 m floor (y = 0, facing +y) of 46 × 46 cells, two triangles each, written
+/// all first triangles then all second ones so none merge into quads (4 232 polygons: above
+/// `lightmap::GROUPED_ABOVE`), lit by a 50 cd point light 3 m above (1, 0.5).
+fn flat_floor() -> Value {
+    let n = 46u32;
+    let mut positions = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (x, z) = (
+                10.0 * i as f32 / n as f32 - 5.0,
+                10.0 * j as f32 / n as f32 - 5.0,
+            );
+            positions.push([x, 0.0, z]);
+        }
+    }
+    let (mut first, mut second) = (Vec::new(), Vec::new());
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * (n + 1) + i;
+            let (b, c, d) = (a + 1, a + n + 2, a + n + 1);
+            first.extend([a, d, c]);
+            second.extend([a, c, b]);
+        }
+    }
+    let indices: Vec<u32> = first.into_iter().chain(second).collect();
+    let mut bytes: Vec<u8> = positions
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let offset = bytes.len();
+    bytes.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+    json!({
+        "asset": { "version": "2.0" },
+        "scene": 0,
+        "scenes": [{ "nodes": [0, 1] }],
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": { "KHR_lights_punctual": { "lights": [
+            { "type": "point", "intensity": 50.0, "color": [1.0, 1.0, 1.0] }
+        ] } },
+        "nodes": [
+            { "name": "floor", "mesh": 0 },
+            { "name": "lamp", "translation": [1.0, 3.0, 0.5],
+              "extensions": { "KHR_lights_punctual": { "light": 0 } } }
+        ],
+        "meshes": [{ "name": "floor", "primitives": [{
+            "attributes": { "POSITION": 0 }, "indices": 1, "material": 0
+        }] }],
+        "materials": [{ "name": "grey", "pbrMetallicRoughness": {
+            "baseColorFactor": [0.5, 0.5, 0.5, 1.0], "metallicFactor": 0.0
+        } }],
+        "accessors": [
+            { "bufferView": 0, "componentType": 5126, "count": positions.len(), "type": "VEC3",
+              "min": [-5.0, 0.0, -5.0], "max": [5.0, 0.0, 5.0] },
+            { "bufferView": 1, "componentType": 5125, "count": indices.len(), "type": "SCALAR" }
+        ],
+        "bufferViews": [
+            { "buffer": 0, "byteLength": offset },
+            { "buffer": 0, "byteOffset": offset, "byteLength": bytes.len() - offset }
+        ],
+        "buffers": [{ "byteLength": bytes.len(), "uri": data_uri(&bytes) }]
+    })
+}
+
+/// The EXR's texels (RGB, row-major from the top) and size.
+fn read_exr(path: &Path) -> (u32, u32, Vec<[f32; 3]>) {
+    let image = image::open(path).expect("read the EXR").to_rgb32f();
+    (
+        image.width(),
+        image.height(),
+        image.pixels().map(|p| p.0).collect(),
+    )
+}
+
+#[test]
+fn grouped_charts_carry_a_point_lights_closed_form_through_the_files() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (run, layout) = bake_uv(dir.path(), "floor", &flat_floor(), "auto");
+    run.success();
+    assert_eq!(layout[0]["uv"], "generated", "{layout}");
+    let out = dir.path().join("floor-out.gltf");
+    if let Some(summary) = validate_clean(std::slice::from_ref(&out)) {
+        eprintln!("{summary}");
+    }
+    let (width, height, texels) = read_exr(&dir.path().join("floor-out.lightmap.exr"));
+    // Every output triangle's centroid (TEXCOORD_1 interpolated there) more than two
+    // elements from the floor's edge reads the point light's H = I cos θ / (π d²) within 1%:
+    // the smoothed element means, through the grouped chart.
+    let light = DVec3::new(1.0, 3.0, 0.5);
+    let (mut checked, mut worst) = (0, 0.0f64);
+    for (p, t) in triangles_by_node(&out, 1).values().flatten() {
+        let point = (p[0] + p[1] + p[2]) / 3.0;
+        // Away from the floor's edge, where smoothing is one-sided (first order).
+        if point.x.abs().max(point.z.abs()) > 4.5 {
+            continue;
+        }
+        let at = (t[0] + t[1] + t[2]) / 3.0;
+        let got = lightmap::sample_bilinear(&texels, width, height, at.to_array());
+        let d = light.distance(point);
+        let want = 50.0 * (light.y - point.y) / (std::f64::consts::PI * d * d * d);
+        worst = got
+            .iter()
+            .fold(worst, |w, g| w.max((g - want).abs() / want));
+        checked += 1;
+    }
+    assert!(checked > 3000, "{checked}");
+    println!("{checked} triangle centroids: worst relative error {worst:.2e}");
+    assert!(worst < 0.01, "worst {worst}");
 }
