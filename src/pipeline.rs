@@ -367,8 +367,13 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             Exposure::Value(_) => {}
         }
         if let Some(built) = &lightmap {
+            let layout = if built.uv_decisions.iter().all(|d| d.kept) {
+                "the input's TEXCOORD_1".to_string()
+            } else {
+                format!("{} charts", built.stats.charts)
+            };
             hardness += &format!(
-                ", lightmap {}×{} (texel {:.6}, {:.1}% occupied)",
+                ", lightmap {}×{} (texel {:.6}, {:.1}% occupied, {layout})",
                 built.width,
                 built.height,
                 built.texel_size,

@@ -311,3 +311,56 @@ fn grouped_charts_on_a_hundred_thousand_triangles() {
     println!("{seams} seams across charts: texel jump / solution jump ≤ {worst:.3}");
     assert!(seams > 100, "{seams}");
 }
+
+/// The generated layout of the 100k-triangle scene, given back as an authored TEXCOORD_1,
+/// passes the authored-layout checks (no overlaps, inside [0, 1]) and is kept as it is: two
+/// independent overlap tests agree, and a kept layout of 100k triangles is checked quickly.
+#[test]
+fn a_generated_layout_is_a_valid_authored_one() {
+    let polygons = scene();
+    let mesh = mesher::mesh(&polygons, mesher::Subdivision::Count(1)).expect("mesh");
+    let h: Vec<[f64; 3]> = mesh.elements.iter().map(|e| smooth_h(e.centroid)).collect();
+    let options = lightmap::Options {
+        texel_size: 0.04,
+        max_size: lightmap::DEFAULT_MAX_SIZE,
+    };
+    let generated = lightmap::build(&polygons, &mesh, &h, &options).expect("build");
+    let authored = lightmap::AuthoredUv {
+        polygons: (0..polygons.len())
+            .map(|p| {
+                Ok((0..polygons[p].vertices.len())
+                    .map(|k| DVec2::from_array(generated.texcoord(p, k).map(f64::from)))
+                    .collect())
+            })
+            .collect(),
+    };
+    let started = Instant::now();
+    let kept = lightmap::build_with(
+        &polygons,
+        &mesh,
+        &h,
+        &options,
+        &authored,
+        lightmap::UvMode::Keep,
+    )
+    .expect("the generated layout is a usable authored one");
+    println!(
+        "kept {} triangles' layout: {}×{} atlas, occupancy {:.1}%, {:.2} s",
+        polygons.len(),
+        kept.width,
+        kept.height,
+        100.0 * kept.stats.occupancy,
+        started.elapsed().as_secs_f64()
+    );
+    assert!(kept.uv_decisions.iter().all(|d| d.kept));
+    assert!(kept.warnings.is_empty(), "{:?}", kept.warnings);
+    for (p, polygon) in polygons.iter().enumerate() {
+        for k in 0..polygon.vertices.len() {
+            let (a, b) = (kept.texcoord(p, k), generated.texcoord(p, k));
+            assert!(
+                (a[0] - b[0]).abs() <= f32::EPSILON && (a[1] - b[1]).abs() <= f32::EPSILON,
+                "{p}/{k}: {a:?} vs {b:?}"
+            );
+        }
+    }
+}
