@@ -197,6 +197,14 @@ pub struct Cli {
     #[arg(long, value_name = "N", default_value_t = lightmap::DEFAULT_MAX_SIZE,
           value_parser = clap::value_parser!(u32).range(16..=16384))]
     pub lightmap_max: u32,
+    /// Where the lightmap's charts come from. `keep`: the input's TEXCOORD_1 as authored
+    /// (refused when it leaves [0, 1], overlaps — two primitives or instances share texels, or
+    /// a double-sided face's sides would — or a material samples it as a texture set);
+    /// `generate`: one chart per polygon, packed; `auto`: `keep` when the whole scene's
+    /// TEXCOORD_1 is usable, else `generate` (the report's options.lightmap_layout says why,
+    /// per primitive).
+    #[arg(long, value_enum, default_value_t = LightmapUv::Auto)]
+    pub lightmap_uv: LightmapUv,
 
     /// Write a JSON bake report (options, counts, timings, residuals, every element's
     /// centroid, normal, area, ρ, e and b in world space).
@@ -378,6 +386,23 @@ pub enum Target {
     Vertex,
     Lightmap,
     Both,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum LightmapUv {
+    Auto,
+    Keep,
+    Generate,
+}
+
+impl LightmapUv {
+    pub fn mode(self) -> lightmap::UvMode {
+        match self {
+            LightmapUv::Auto => lightmap::UvMode::Auto,
+            LightmapUv::Keep => lightmap::UvMode::Keep,
+            LightmapUv::Generate => lightmap::UvMode::Generate,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

@@ -1,6 +1,6 @@
 //! Wires the stages together, times them, reports progress, and maps failures to exit codes.
 
-use crate::{Cli, Exposure, ReportElements, Shading, Target, REPORT_ELEMENTS_LIMIT};
+use crate::{Cli, Exposure, LightmapUv, ReportElements, Shading, Target, REPORT_ELEMENTS_LIMIT};
 use anyhow::{anyhow, Context};
 use bake_core::Solve;
 use exporter::report::{
@@ -120,6 +120,28 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         memory.insert("import".to_string(), mib);
     }
     exporter::check_distinct(&planned, &scene.input_files).map_err(same_file)?;
+    // `--lightmap-uv keep` with an unusable TEXCOORD_1 is refused before the bake.
+    let authored_uv = if cli.target != Target::Vertex && cli.lightmap_uv != LightmapUv::Generate {
+        lightmap::AuthoredUv::from_scene(&scene)
+    } else {
+        lightmap::AuthoredUv::none(scene.polygons.len())
+    };
+    if cli.target != Target::Vertex && cli.lightmap_uv == LightmapUv::Keep {
+        let options = lightmap::Options {
+            texel_size: cli
+                .lightmap_texel
+                .unwrap_or_else(|| lightmap::default_texel_size(&scene.polygons)),
+            max_size: cli.lightmap_max,
+        };
+        lightmap::plan_uv(
+            &scene.polygons,
+            &authored_uv,
+            lightmap::UvMode::Keep,
+            &options,
+        )
+        .with_context(|| format!("{}", input.display()))
+        .map_err(bad_input)?;
+    }
     // Warnings as they arise: a bake refused or killed later still showed them.
     let warn = |lines: &[String]| {
         if !cli.quiet {
@@ -180,11 +202,20 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             max_size: cli.lightmap_max,
         };
         bake_core::Progress::start(&bars, "lightmap", 0);
-        let built = lightmap::build(&scene.polygons, mesh, h, &options);
+        let built = lightmap::build_with(
+            &scene.polygons,
+            mesh,
+            h,
+            &options,
+            &authored_uv,
+            cli.lightmap_uv.mode(),
+        );
         bake_core::Progress::finish(&bars);
         let built = built
             .with_context(|| format!("{}: cannot build the lightmap", input.display()))
             .map_err(internal)?;
+        warn(&built.warnings);
+        warnings.extend(built.warnings.iter().cloned());
         if built.stats.reductions > 0 {
             let line = format!(
                 "lightmap texel size raised from {:.6} to {:.6} to fit a {} atlas",
@@ -271,6 +302,9 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             .with_context(|| format!("cannot build the report {}", path.display()))
             .map_err(internal)?;
         report.options = options_json(cli, &bake, &settings, &scene, exposure);
+        if let (Some(built), Some(map)) = (&lightmap, report.options.as_object_mut()) {
+            map.insert("lightmap_layout".into(), lightmap_layout(built));
+        }
         for (i, entry) in report.elements.iter_mut().enumerate() {
             // ρ and e as the bake used them (textures averaged over the element).
             entry.rho = bake.rho[i];
@@ -375,8 +409,13 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             Exposure::Value(_) => {}
         }
         if let Some(built) = &lightmap {
+            let layout = if built.uv_decisions.iter().all(|d| d.kept) {
+                "the input's TEXCOORD_1".to_string()
+            } else {
+                format!("{} charts", built.stats.charts)
+            };
             hardness += &format!(
-                ", lightmap {}×{} (texel {:.6}, {:.1}% occupied)",
+                ", lightmap {}×{} (texel {:.6}, {:.1}% occupied, {layout})",
                 built.width,
                 built.height,
                 built.texel_size,
@@ -495,11 +534,36 @@ fn options_json(
             .lightmap_texel
             .unwrap_or_else(|| lightmap::default_texel_size(&scene.polygons)),
         "lightmap_max": cli.lightmap_max,
+        "lightmap_uv": match cli.lightmap_uv {
+            LightmapUv::Auto => "auto",
+            LightmapUv::Keep => "keep",
+            LightmapUv::Generate => "generate",
+        },
     });
     if let (Some(map), serde_json::Value::Object(extra)) = (options.as_object_mut(), output) {
         map.extend(extra);
     }
     options
+}
+
+/// The report's `options.lightmap_layout`: per primitive instance, whether the input's
+/// TEXCOORD_1 was kept as the lightmap layout, and if not why.
+fn lightmap_layout(built: &lightmap::Lightmap) -> serde_json::Value {
+    let entries: Vec<serde_json::Value> = built
+        .uv_decisions
+        .iter()
+        .map(|d| {
+            serde_json::json!({
+                "node": d.node,
+                "mesh": d.mesh,
+                "primitive": d.primitive,
+                "polygons": d.polygons,
+                "uv": if d.kept { "kept" } else { "generated" },
+                "reason": d.reason,
+            })
+        })
+        .collect();
+    serde_json::Value::Array(entries)
 }
 
 /// The report's `lights`: each light the bake used, where it is, and what it took.

@@ -497,8 +497,8 @@ struct PrimitiveData {
     positions: Vec<[f32; 3]>,
     normals: Vec<[f32; 3]>,
     texcoords: Vec<[f32; 2]>,
-    /// The input's TEXCOORD_0 where its material is textured (else the lightmap's UVs, so
-    /// TEXCOORD_1 has its TEXCOORD_0).
+    /// The input's TEXCOORD_0 where the importer kept it (a textured material, or a
+    /// primitive with TEXCOORD_1); else the lightmap's UVs, so TEXCOORD_1 has its TEXCOORD_0.
     input_uv0: Option<Vec<[f32; 2]>>,
     /// The input's TEXCOORD_1, written as TEXCOORD_2, when the material's textures read it.
     input_uv1: Option<Vec<[f32; 2]>>,

@@ -341,6 +341,18 @@ fn build_scene(
             if !std::mem::replace(&mut checked[material_index], true) {
                 let name = describe("material", material.name.as_deref(), material_index);
                 check_material(material, &format!("{name} used by {label}"))?;
+                // Alpha cut-outs are not baked: the whole surface reflects and blocks light.
+                let mode = root.materials.get(material_index).map(|m| &m.alpha_mode);
+                let alpha = match mode {
+                    Some(Checked::Valid(gltf::json::material::AlphaMode::Mask)) => Some("MASK"),
+                    Some(Checked::Valid(gltf::json::material::AlphaMode::Blend)) => Some("BLEND"),
+                    _ => None,
+                };
+                if let Some(alpha) = alpha {
+                    warnings.push(format!(
+                        "{name}: alphaMode {alpha} is baked opaque (the whole surface reflects and blocks light)"
+                    ));
+                }
             }
             instances.push(Instance {
                 label,
@@ -391,7 +403,7 @@ fn build_scene(
 }
 
 /// Per polygon whose material has a texture (decoded for ρ/e, or kept for the outputs) or
-/// whose primitive has COLOR_0: the source triangles it was made of, in world space, with
+/// whose primitive has COLOR_0 or TEXCOORD_1: the source triangles it was made of, in world space, with
 /// their texture coordinates (every set the primitive has) and colours. A glTF polygon is source triangle `face`, or the quad merged from
 /// `face` and `face + 1`.
 fn polygon_uvs(
@@ -419,10 +431,12 @@ fn polygon_uvs(
                 .get(&(o.mesh, o.primitive))
                 .and_then(Option::as_ref)
                 .ok_or_else(|| ImportError::Gltf(format!("mesh {} lost its primitive", o.mesh)))?;
-            if sets.is_empty() && kept == [false; 2] && local.colors.is_none() {
+            let present = [0, 1].map(|set| local.uvs.get(set).is_some_and(Option::is_some));
+            // A TEXCOORD_1 may be the authored lightmap layout (`--lightmap-uv`): kept for
+            // every polygon whose primitive has one.
+            if sets.is_empty() && kept == [false; 2] && local.colors.is_none() && !present[1] {
                 return Ok(None);
             }
-            let present = [0, 1].map(|set| local.uvs.get(set).is_some_and(Option::is_some));
             let world = layout.nodes[o.node].world;
             let count = if p.vertices.len() == 4 { 2 } else { 1 };
             let mut triangles = Vec::with_capacity(count);

@@ -283,7 +283,8 @@ pub struct Scene {
     pub textures: Vec<Texture>,
     pub images: Vec<Image>,
     /// Per polygon: its texture mapping when its material has a texture in any slot the
-    /// outputs keep (base colour, emissive, metallic-roughness, normal).
+    /// outputs keep (base colour, emissive, metallic-roughness, normal), or when its
+    /// primitive has `COLOR_0` or `TEXCOORD_1` (a lightmap layout the lightmap may keep).
     pub uvs: Vec<Option<PolygonUv>>,
     /// The materials, textures and encoded images as authored, for outputs that keep them.
     pub authored: Authored,

@@ -305,6 +305,25 @@ fn emissive_strength_multiplies_the_emissive_factor() {
 }
 
 #[test]
+fn masked_and_blended_materials_are_baked_opaque_with_a_warning() {
+    for (mode, warned) in [("OPAQUE", false), ("MASK", true), ("BLEND", true)] {
+        let material = json!({ "name": "Grate", "alphaMode": mode });
+        let b = single(&TRIANGLE, None, Some(material));
+        let scene = write_and_load(&b).unwrap();
+        let line = format!("alphaMode {mode} is baked opaque");
+        assert_eq!(
+            scene
+                .warnings
+                .iter()
+                .any(|w| w.contains(&line) && w.contains("Grate")),
+            warned,
+            "{mode}: {:?}",
+            scene.warnings
+        );
+    }
+}
+
+#[test]
 fn degenerate_triangles_are_dropped_with_one_warning() {
     let points = [[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [2., 0., 0.]];
     // Face 1 repeats a vertex; face 2 is collinear (zero area).

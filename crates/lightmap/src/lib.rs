@@ -1,6 +1,9 @@
-//! Lightmaps for a radiosity bake: one chart per polygon, charts packed into one atlas, and
-//! per-texel irradiance reconstructed from the element solution, ready to be written as a
-//! linear EXR and an 8-bit PNG.
+//! Lightmaps for a radiosity bake: charts (one per polygon; grouped across smooth, connected
+//! surfaces above [`GROUPED_ABOVE`] polygons; or the input's own `TEXCOORD_1` kept,
+//! [`UvMode`]) packed into one atlas, and per-texel irradiance reconstructed from the element
+//! solution, ready to be written as a linear EXR and an 8-bit PNG. Not here: several atlases
+//! (one atlas holds every chart, made coarser until it fits), unwrapping of curved charts
+//! (grouped charts are projected), alpha cut-outs.
 //!
 //! Public API: [`build`] with [`Options`] → [`Lightmap`]; [`encode_exr`], [`encode_png`].
 //!
@@ -19,20 +22,29 @@
 //! Layout rules ([`chart`]): a quad becomes a rectangle with its true aspect, a triangle a right
 //! triangle of its area so two share a rectangle; every chart has [`PADDING`] texels of its own
 //! around it and regions start on even texels. Packing uses `etagere` (a maintained shelf
-//! allocator: ~10k rectangles in milliseconds, ~85% occupancy sorted by height).
+//! allocator: ~10k rectangles in milliseconds, ~85% occupancy sorted by height). Grouped
+//! charts (`group`: same node and material, connected, normals within
+//! [`CHART_CONE_DEGREES`] of the first polygon's) are projected onto their mean plane, turned
+//! to their smallest bounding rectangle and packed by a skyline packer (`pack::pack_skyline`:
+//! etagere's shelves leave the shelf of one tall chart, a terrain, empty beside it); their
+//! texels, like a kept layout's, are made over the whole atlas (`raster::atlas_texels`).
 //!
 //! Deterministic: the same input gives the same texels whatever the thread count.
 
+mod authored;
 mod chart;
 mod encode;
 mod field;
+mod group;
 mod pack;
 mod raster;
 
+pub use authored::{AuthoredUv, UvDecision, UvMode, MIN_PADDING};
 pub use chart::{PADDING, PAIR_GAP};
 pub use encode::{
     encode_exr, encode_png, linear_to_srgb, srgb_to_linear, PngLightmap, EXR_COMMENT,
 };
+pub use group::{CHART_CONE_DEGREES, GROUPED_ABOVE};
 pub use raster::DILATION_RADIUS;
 
 use field::Field;
@@ -91,7 +103,8 @@ pub struct Chart {
     /// polygon vertex, in the polygon's vertex order. `TEXCOORD_1 = uv / (width, height)`.
     pub uv: Vec<[f64; 2]>,
     /// The region the packer placed: the chart, its gutter and, for two triangles sharing a
-    /// rectangle, the other one. Regions never overlap.
+    /// rectangle, the other one. Regions never overlap. For a kept authored layout: the
+    /// chart's bounding box in whole texels (neighbours in one island share edges).
     pub region: Rect,
 }
 
@@ -109,6 +122,9 @@ pub struct Stats {
     pub welded_vertices: usize,
     /// Times the texel size was made coarser to fit `max_size`.
     pub reductions: u32,
+    /// Charts made: one per polygon, or per group above [`GROUPED_ABOVE`] polygons; 0 for a
+    /// kept authored layout.
+    pub charts: usize,
 }
 
 /// A built lightmap: the atlas of irradiance and where every polygon is in it.
@@ -127,6 +143,11 @@ pub struct Lightmap {
     /// The smoothed, welded H per mesh vertex the texels were reconstructed from.
     pub vertex_values: Vec<[f64; 3]>,
     pub stats: Stats,
+    /// Per primitive instance, in (node, mesh, primitive) order: whether its `TEXCOORD_1`
+    /// was kept as the layout, and if not why.
+    pub uv_decisions: Vec<UvDecision>,
+    /// Things the user should know (authored padding under [`MIN_PADDING`] texels).
+    pub warnings: Vec<String>,
     fields: Vec<Field>,
 }
 
@@ -139,17 +160,59 @@ pub enum LightmapError {
     InvalidData(String),
     #[error("the charts do not fit in a {max}×{max} atlas at any texel size (too many polygons)")]
     TooLarge { max: u32 },
+    /// `--lightmap-uv keep` with a `TEXCOORD_1` that is not a usable layout.
+    #[error("cannot keep the input's TEXCOORD_1 as the lightmap layout: {0}")]
+    AuthoredUv(String),
     #[error("cannot encode the {what} lightmap: {message}")]
     Encode { what: &'static str, message: String },
 }
 
 /// Builds the lightmap of `polygons` (the importer's polygons, world space) from their element
-/// mesh and per-element irradiance H (3 bands, same units as e and b).
+/// mesh and per-element irradiance H (3 bands, same units as e and b), with generated charts.
 pub fn build(
     polygons: &[Polygon],
     mesh: &ElementMesh,
     element_irradiance: &[[f64; 3]],
     options: &Options,
+) -> Result<Lightmap, LightmapError> {
+    let none = AuthoredUv::none(polygons.len());
+    build_with(
+        polygons,
+        mesh,
+        element_irradiance,
+        options,
+        &none,
+        UvMode::Generate,
+    )
+}
+
+/// Whether each primitive's `TEXCOORD_1` would be kept, without building anything: for
+/// `UvMode::Keep`, an error naming the first primitive whose layout is not usable.
+pub fn plan_uv(
+    polygons: &[Polygon],
+    authored: &AuthoredUv,
+    mode: UvMode,
+    options: &Options,
+) -> Result<Vec<UvDecision>, LightmapError> {
+    Ok(authored::plan(
+        polygons,
+        authored,
+        mode,
+        options.texel_size,
+        options.max_size,
+    )?
+    .decisions)
+}
+
+/// [`build`] with the input's authored `TEXCOORD_1` (`AuthoredUv::from_scene`) as the
+/// layout where `mode` says so (see [`UvMode`]).
+pub fn build_with(
+    polygons: &[Polygon],
+    mesh: &ElementMesh,
+    element_irradiance: &[[f64; 3]],
+    options: &Options,
+    authored: &AuthoredUv,
+    mode: UvMode,
 ) -> Result<Lightmap, LightmapError> {
     if !(options.texel_size.is_finite() && options.texel_size > 0.0) {
         return Err(LightmapError::InvalidOptions(format!(
@@ -187,6 +250,34 @@ pub fn build(
     let (vertex_values, welded_vertices) =
         smooth_and_weld(polygons, mesh, &fields, element_irradiance);
 
+    let plan = authored::plan(
+        polygons,
+        authored,
+        mode,
+        options.texel_size,
+        options.max_size,
+    )?;
+    if let Some(kept) = plan.kept {
+        return Ok(kept_lightmap(
+            kept,
+            options,
+            fields,
+            vertex_values,
+            welded_vertices,
+            plan.decisions,
+        ));
+    }
+    if polygons.len() > GROUPED_ABOVE {
+        let layout = grouped_layout(polygons, options)?;
+        return Ok(assemble(
+            layout,
+            options,
+            fields,
+            vertex_values,
+            welded_vertices,
+            plan.decisions,
+        ));
+    }
     let (texel_size, regions, packing, reductions) = fit(polygons, options)?;
     let width = packing.width as usize;
     let mut texels = vec![[0.0f32; 3]; width * packing.height as usize];
@@ -229,6 +320,7 @@ pub fn build(
     let mut stats = Stats {
         welded_vertices,
         reductions,
+        charts: polygons.len(),
         ..Stats::default()
     };
     for (k, t) in coverage.iter().enumerate() {
@@ -258,8 +350,199 @@ pub fn build(
         charts,
         vertex_values,
         stats,
+        uv_decisions: plan.decisions,
+        warnings: Vec::new(),
         fields,
     })
+}
+
+/// The lightmap of an authored layout: one square atlas, every chart where its TEXCOORD_1
+/// puts it (regions: each chart's bounding box in whole texels).
+fn kept_lightmap(
+    kept: authored::Kept,
+    options: &Options,
+    fields: Vec<Field>,
+    vertex_values: Vec<[f64; 3]>,
+    welded_vertices: usize,
+    uv_decisions: Vec<UvDecision>,
+) -> Lightmap {
+    let side = kept.side;
+    let regions = kept
+        .charts
+        .iter()
+        .map(|uv| {
+            let (lo, hi) = uv.iter().fold(
+                (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+                |(lo, hi), q| (lo.min(*q), hi.max(*q)),
+            );
+            let x = lo.x.floor().max(0.0) as u32;
+            let y = lo.y.floor().max(0.0) as u32;
+            let right = (hi.x.ceil().max(0.0) as u32).clamp(x, side);
+            let bottom = (hi.y.ceil().max(0.0) as u32).clamp(y, side);
+            Rect {
+                x,
+                y,
+                width: right - x,
+                height: bottom - y,
+            }
+        })
+        .collect();
+    let warnings = kept
+        .padding
+        .map(|gap| {
+            format!(
+                "the input's TEXCOORD_1 islands are {gap:.2} texels apart at {side}×{side} (under {MIN_PADDING}): filtering mixes their light"
+            )
+        })
+        .into_iter()
+        .collect();
+    assemble(
+        Assembly {
+            width: side,
+            height: side,
+            texel_size: kept.texel_size,
+            reductions: kept.reductions,
+            charts: kept.charts,
+            regions,
+            chart_count: 0,
+            warnings,
+        },
+        options,
+        fields,
+        vertex_values,
+        welded_vertices,
+        uv_decisions,
+    )
+}
+
+/// An atlas laid out by per-polygon texel-space charts, before its texels are made.
+struct Assembly {
+    width: u32,
+    height: u32,
+    texel_size: f64,
+    reductions: u32,
+    charts: Vec<Vec<DVec2>>,
+    regions: Vec<Rect>,
+    chart_count: usize,
+    warnings: Vec<String>,
+}
+
+fn assemble(
+    a: Assembly,
+    options: &Options,
+    fields: Vec<Field>,
+    vertex_values: Vec<[f64; 3]>,
+    welded_vertices: usize,
+    uv_decisions: Vec<UvDecision>,
+) -> Lightmap {
+    let block = raster::atlas_texels(a.width, a.height, &a.charts, &fields, &vertex_values);
+    let n = a.width as usize;
+    let mut stats = Stats {
+        welded_vertices,
+        reductions: a.reductions,
+        charts: a.chart_count,
+        ..Stats::default()
+    };
+    for (k, t) in block.coverage.iter().enumerate() {
+        match t {
+            Texel::Chart(p) => {
+                stats.chart_texels += 1;
+                let c = DVec2::new((k % n) as f64 + 0.5, (k / n) as f64 + 0.5);
+                stats.interior_texels += u64::from(raster::inside(c, &a.charts[*p as usize]));
+            }
+            Texel::Gutter(_) => stats.gutter_texels += 1,
+            Texel::Unused => {}
+        }
+    }
+    stats.occupancy = stats.chart_texels as f64 / block.coverage.len() as f64;
+    let charts = a
+        .charts
+        .iter()
+        .zip(&a.regions)
+        .enumerate()
+        .map(|(polygon, (uv, region))| Chart {
+            polygon,
+            uv: uv.iter().map(|p| p.to_array()).collect(),
+            region: *region,
+        })
+        .collect();
+    Lightmap {
+        width: a.width,
+        height: a.height,
+        texel_size: a.texel_size,
+        requested_texel_size: options.texel_size,
+        texels: block.values,
+        coverage: block.coverage,
+        charts,
+        vertex_values,
+        stats,
+        uv_decisions,
+        warnings: a.warnings,
+        fields,
+    }
+}
+
+/// Grouped charts ([`group`]) packed into one atlas at the requested texel size, or coarser
+/// until they fit.
+fn grouped_layout(polygons: &[Polygon], options: &Options) -> Result<Assembly, LightmapError> {
+    let max = options.max_size;
+    let groups = group::groups(polygons);
+    let area: f64 = polygons.iter().map(polygon_area).sum();
+    let floor = (area / (f64::from(max) * f64::from(max))).sqrt();
+    let mut texel = options.texel_size.max(floor);
+    let mut reductions = u32::from(texel > options.texel_size);
+    for _ in 0..64 {
+        let Some(regions) = groups
+            .iter()
+            .map(|g| group::region(g, 1.0 / texel))
+            .collect::<Option<Vec<_>>>()
+        else {
+            texel *= 2.0;
+            reductions += 1;
+            continue;
+        };
+        let sizes: Vec<(u32, u32)> = regions.iter().map(|r| (r.0, r.1)).collect();
+        if let Some(packing) = pack::pack_skyline(&sizes, max) {
+            let mut charts = vec![Vec::new(); polygons.len()];
+            let mut rects = vec![
+                Rect {
+                    x: 0,
+                    y: 0,
+                    width: 0,
+                    height: 0
+                };
+                polygons.len()
+            ];
+            for ((g, (w, h, uv)), &(x, y)) in groups.iter().zip(regions).zip(&packing.positions) {
+                let offset = DVec2::new(f64::from(x), f64::from(y));
+                for (&p, t) in g.polygons.iter().zip(uv) {
+                    charts[p] = t.iter().map(|q| *q + offset).collect();
+                    rects[p] = Rect {
+                        x,
+                        y,
+                        width: w,
+                        height: h,
+                    };
+                }
+            }
+            return Ok(Assembly {
+                width: packing.width,
+                height: packing.height,
+                texel_size: texel,
+                reductions,
+                charts,
+                regions: rects,
+                chart_count: groups.len(),
+                warnings: Vec::new(),
+            });
+        }
+        texel *= coarser(&sizes, max);
+        reductions += 1;
+        if sizes.len() as u64 * 64 > u64::from(max) * u64::from(max) {
+            return Err(LightmapError::TooLarge { max });
+        }
+    }
+    Err(LightmapError::TooLarge { max })
 }
 
 fn fields(polygons: &[Polygon], mesh: &ElementMesh) -> Result<Vec<Field>, LightmapError> {
@@ -333,16 +616,7 @@ fn fit(polygons: &[Polygon], options: &Options) -> Result<Fitted, LightmapError>
         if let Some(packing) = pack::pack(&sizes, max) {
             return Ok((texel, regions, packing, reductions));
         }
-        // Coarser in proportion to the overflow, at least 5%.
-        let needed: f64 = sizes
-            .iter()
-            .map(|&(w, h)| f64::from(w) * f64::from(h))
-            .sum::<f64>()
-            / 0.8;
-        let widest = sizes.iter().map(|s| s.0.max(s.1)).max().unwrap_or(0);
-        let by_area = (needed / (f64::from(max) * f64::from(max))).sqrt();
-        let by_width = f64::from(widest) / f64::from(max);
-        texel *= by_area.max(by_width).clamp(1.05, 4.0);
+        texel *= coarser(&sizes, max);
         reductions += 1;
         if sizes.len() as u64 * 64 > u64::from(max) * u64::from(max) {
             // Every region is at least 8×8 texels: no texel size helps.
@@ -352,7 +626,21 @@ fn fit(polygons: &[Polygon], options: &Options) -> Result<Fitted, LightmapError>
     Err(too_large)
 }
 
-fn polygon_area(p: &Polygon) -> f64 {
+/// How much coarser texels must get for regions of `sizes` (texels) to fit a `max` atlas:
+/// in proportion to the overflow, at least 5%, at most 4×.
+fn coarser(sizes: &[(u32, u32)], max: u32) -> f64 {
+    let needed: f64 = sizes
+        .iter()
+        .map(|&(w, h)| f64::from(w) * f64::from(h))
+        .sum::<f64>()
+        / 0.8;
+    let widest = sizes.iter().map(|s| s.0.max(s.1)).max().unwrap_or(0);
+    let by_area = (needed / (f64::from(max) * f64::from(max))).sqrt();
+    let by_width = f64::from(widest) / f64::from(max);
+    by_area.max(by_width).clamp(1.05, 4.0)
+}
+
+pub(crate) fn polygon_area(p: &Polygon) -> f64 {
     let v = &p.vertices;
     (1..v.len() - 1)
         .map(|k| (v[k] - v[0]).cross(v[k + 1] - v[0]).length() / 2.0)

@@ -149,3 +149,109 @@ pub(crate) fn region_texels(
     }
     out
 }
+
+/// Reconstructs a whole atlas laid out by per-polygon charts (texel space; authored, or
+/// grouped charts), which may share texels with their neighbours in one island or chart: a footprint texel belongs to
+/// the chart nearest its centre (0 inside; ties to the lower polygon), the gutter grows from
+/// the footprints in [`DILATION_RADIUS`] rings, each texel taking the nearest footprint
+/// texel among its 8 neighbours' sources (ties to the lower index).
+pub(crate) fn atlas_texels(
+    width: u32,
+    height: u32,
+    charts: &[Vec<DVec2>],
+    fields: &[Field],
+    values: &[[f64; 3]],
+) -> RegionTexels {
+    use rayon::prelude::*;
+    let (n, rows) = (width as usize, height as usize);
+    let mut claim: Vec<(f64, u32)> = vec![(f64::INFINITY, u32::MAX); n * rows];
+    for (p, uv) in charts.iter().enumerate() {
+        let (lo, hi) = uv.iter().fold(
+            (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+            |(lo, hi), q| (lo.min(*q), hi.max(*q)),
+        );
+        let range = |a: f64, b: f64, n: usize| {
+            let first = (a - 1.5).floor().max(0.0) as usize;
+            let last = ((b + 1.5).ceil().max(0.0) as usize).min(n);
+            first..last
+        };
+        for y in range(lo.y, hi.y, rows) {
+            for x in range(lo.x, hi.x, n) {
+                let c = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+                if !in_footprint(c, uv) {
+                    continue;
+                }
+                let d = crate::authored::polygon_distance(c, uv);
+                let slot = &mut claim[y * n + x];
+                if (d, p as u32) < *slot {
+                    *slot = (d, p as u32);
+                }
+            }
+        }
+    }
+    let mut out = RegionTexels {
+        values: vec![[0.0; 3]; n * rows],
+        coverage: vec![Texel::Unused; n * rows],
+    };
+    out.values
+        .par_chunks_mut(n)
+        .zip(out.coverage.par_chunks_mut(n))
+        .enumerate()
+        .for_each(|(y, (row, cover))| {
+            for x in 0..n {
+                let (_, p) = claim[y * n + x];
+                if p == u32::MAX {
+                    continue;
+                }
+                let c = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+                let v = chart_value(c, &charts[p as usize], &fields[p as usize], values);
+                row[x] = v.map(|v| v as f32);
+                cover[x] = Texel::Chart(p);
+            }
+        });
+    // The gutter, ring by ring: `source` is the footprint texel a texel copies.
+    let mut source: Vec<u32> = claim
+        .iter()
+        .enumerate()
+        .map(|(k, c)| if c.1 == u32::MAX { u32::MAX } else { k as u32 })
+        .collect();
+    for _ in 0..DILATION_RADIUS {
+        let next: Vec<u32> = (0..n * rows)
+            .into_par_iter()
+            .map(|k| {
+                if source[k] != u32::MAX {
+                    return source[k];
+                }
+                let (x, y) = ((k % n) as i64, (k / n) as i64);
+                let mut best: Option<(i64, u32)> = None;
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let (sx, sy) = (x + dx, y + dy);
+                        if sx < 0 || sy < 0 || sx >= n as i64 || sy >= rows as i64 {
+                            continue;
+                        }
+                        let s = source[sy as usize * n + sx as usize];
+                        if s == u32::MAX {
+                            continue;
+                        }
+                        let (fx, fy) = ((s as usize % n) as i64, (s as usize / n) as i64);
+                        let d = (fx - x).pow(2) + (fy - y).pow(2);
+                        if best.is_none_or(|b| (d, s) < b) {
+                            best = Some((d, s));
+                        }
+                    }
+                }
+                best.map_or(u32::MAX, |b| b.1)
+            })
+            .collect();
+        source = next;
+    }
+    for (k, &s) in source.iter().enumerate() {
+        if s == u32::MAX || claim[k].1 != u32::MAX {
+            continue;
+        }
+        out.values[k] = out.values[s as usize];
+        out.coverage[k] = Texel::Gutter(claim[s as usize].1);
+    }
+    out
+}
