@@ -154,6 +154,23 @@ fn a_bright_cube_at_high_quality_stays_dense_and_within_the_target() {
     let error = furnace_error(&report, rho);
     eprintln!("ρ = 0.999 unit cube, high: max rel error {error:.2e}");
     assert!(error <= 1e-6, "{error:e}");
+    assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+
+    // Asked for the hierarchy, the bake says that its links cannot promise the target.
+    let (out, report) = run(
+        dir.path(),
+        &doc,
+        &["--quality", "high", "--transport", "hierarchical"],
+    );
+    let report = report.unwrap_or_else(|| panic!("{out:#?}"));
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.contains("amplify errors") && w.contains("--link-tolerance")),
+        "{:?}",
+        report.warnings
+    );
 }
 
 #[test]

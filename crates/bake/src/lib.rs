@@ -168,11 +168,21 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     // The cost first, from the element count alone: a request too large for this machine is
     // refused before anything is allocated.
     let planned = mesher::element_count(&scene.polygons, settings.subdivision)?;
+    let rho_bound = scene_rho_bound(scene);
     let mut transport = choose_transport(
         settings,
         usize::try_from(planned).unwrap_or(usize::MAX),
-        scene_rho_bound(scene),
+        rho_bound,
     );
+    let amplification = accuracy::condition_bound(rho_bound, 0.0);
+    if transport.kind == TransportKind::Hierarchical && amplification >= BRIGHT_AMPLIFICATION {
+        warnings.push(format!(
+            "reflectances up to {rho_bound} amplify errors up to {amplification:.0}x: the \
+             hierarchical transport's link tolerance {} may leave b far from --max-error {:e} \
+             (a smaller --link-tolerance, or --transport dense where memory allows, tightens it)",
+            settings.link_tolerance, settings.max_error
+        ));
+    }
     let solve = settings.solve(transport.kind);
     check_memory(planned, transport.kind, solve, scene_bands(scene))?;
     let mesh = mesher::mesh(&scene.polygons, settings.subdivision)?;
