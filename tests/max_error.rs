@@ -126,6 +126,53 @@ fn bright_closed_boxes_bake_within_the_target() {
     }
 }
 
+/// The unit cube's box at `--quality high` has 2 166 elements, above the dense crossover: a
+/// bright one (ρ = 0.999: errors amplified up to 2 000×) keeps the dense transport, whose
+/// per-pair tolerance meets the target, while the paper's cube (ρ ≤ 0.75) is hierarchical.
+#[test]
+fn a_bright_cube_at_high_quality_stays_dense_and_within_the_target() {
+    let rho = 0.999f32;
+    let mut doc = box_gltf(Some(rho));
+    // Scale the 1 × 0.5 × 2 box's positions to the unit cube.
+    let cube: Vec<[f32; 3]> = box_triangles()
+        .iter()
+        .map(|p| [p[0], p[1] * 2.0, p[2] * 0.5])
+        .collect();
+    doc = GltfBuilder::triangles(&cube)
+        .material(doc["materials"][0].clone())
+        .json();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (out, report) = run(dir.path(), &doc, &["--quality", "high"]);
+    let report = report.unwrap_or_else(|| panic!("{out:#?}"));
+    assert_eq!(report.elements.len(), 2166);
+    assert_eq!(
+        report.transport.kind, "dense",
+        "{}",
+        report.transport.reason
+    );
+    assert!(report.transport.reason.contains("--max-error"));
+    let error = furnace_error(&report, rho);
+    eprintln!("ρ = 0.999 unit cube, high: max rel error {error:.2e}");
+    assert!(error <= 1e-6, "{error:e}");
+    assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+
+    // Asked for the hierarchy, the bake says that its links cannot promise the target.
+    let (out, report) = run(
+        dir.path(),
+        &doc,
+        &["--quality", "high", "--transport", "hierarchical"],
+    );
+    let report = report.unwrap_or_else(|| panic!("{out:#?}"));
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.contains("amplify errors") && w.contains("--link-tolerance")),
+        "{:?}",
+        report.warnings
+    );
+}
+
 #[test]
 fn the_tolerance_tightens_with_the_reflectance() {
     // The per-pair tolerance the default target (1e-3) chooses, as a table, and the bound it

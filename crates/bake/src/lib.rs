@@ -197,7 +197,21 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     // The cost first, from the element count alone: a request too large for this machine is
     // refused before anything is allocated.
     let planned = mesher::element_count(&scene.polygons, settings.subdivision)?;
-    let mut transport = choose_transport(settings, usize::try_from(planned).unwrap_or(usize::MAX));
+    let rho_bound = scene_rho_bound(scene);
+    let mut transport = choose_transport(
+        settings,
+        usize::try_from(planned).unwrap_or(usize::MAX),
+        rho_bound,
+    );
+    let amplification = accuracy::condition_bound(rho_bound, 0.0);
+    if transport.kind == TransportKind::Hierarchical && amplification >= BRIGHT_AMPLIFICATION {
+        warnings.push(format!(
+            "reflectances up to {rho_bound} amplify errors up to {amplification:.0}x: the \
+             hierarchical transport's link tolerance {} may leave b far from --max-error {:e} \
+             (a smaller --link-tolerance, or --transport dense where memory allows, tightens it)",
+            settings.link_tolerance, settings.max_error
+        ));
+    }
     let solve = settings.solve(transport.kind);
     check_memory(planned, transport.kind, solve, scene_bands(scene))?;
     let mesh = mesher::mesh(&scene.polygons, settings.subdivision)?;
@@ -733,8 +747,36 @@ fn finish<T: Transport>(
     Ok((irradiance, energy))
 }
 
-/// Which transport `settings` asks for on a scene of `n` elements, and why.
-fn choose_transport(settings: &Settings, n: usize) -> TransportChoice {
+/// Under `--transport auto`, bright scenes ([`BRIGHT_AMPLIFICATION`]) up to this many
+/// elements whose hierarchy's link tolerance, so amplified, exceeds `--max-error` get the
+/// dense transport anyway (an 8 000² matrix is 512 MB; the memory guard still applies).
+pub const BRIGHT_DENSE_MAX: usize = 8_000;
+
+/// A scene is bright when its a-priori condition bound `(1 + ρ_max)/(1 − ρ_max)` reaches this
+/// (ρ_max ≥ 0.98): the hierarchy's link errors, measured at ρ ≤ 0.9 in docs/accuracy.md, are
+/// then amplified enough to dominate (a closed ρ = 0.999 cube at `--quality high`, 2 166
+/// elements, was 4% off e/(1 − ρ) with links, 1.4e-9 dense).
+pub const BRIGHT_AMPLIFICATION: f64 = 100.0;
+
+/// An upper bound on every element's reflectance before meshing: the largest ρ factor of the
+/// materials the polygons use (textures and `COLOR_0` only multiply it by values ≤ 1).
+fn scene_rho_bound(scene: &Scene) -> f64 {
+    scene
+        .polygons
+        .iter()
+        .filter_map(|p| scene.materials.get(p.material))
+        .flat_map(|m| m.rho)
+        .fold(0.0f64, f64::max)
+}
+
+/// Which transport `settings` asks for on a scene of `n` elements whose reflectances are at
+/// most `rho_bound`, and why.
+fn choose_transport(settings: &Settings, n: usize, rho_bound: f64) -> TransportChoice {
+    // What the hierarchy's links could cost b: their tolerance amplified by the a-priori
+    // condition bound, against the target.
+    let amplification = accuracy::condition_bound(rho_bound, 0.0);
+    let amplified = amplification * rho_bound * settings.link_tolerance;
+    let bright = amplification >= BRIGHT_AMPLIFICATION && amplified > settings.max_error;
     if let Some(path) = &settings.load_links {
         return TransportChoice {
             kind: TransportKind::Hierarchical,
@@ -758,6 +800,18 @@ fn choose_transport(settings: &Settings, n: usize) -> TransportChoice {
             kind: TransportKind::Dense,
             reason: "--solver direct needs the dense transport".into(),
         },
+        TransportKind::Auto if n > DENSE_CROSSOVER && n <= BRIGHT_DENSE_MAX && bright => {
+            TransportChoice {
+                kind: TransportKind::Dense,
+                reason: format!(
+                    "{n} elements, more than the crossover of {DENSE_CROSSOVER}, but reflectances \
+                     up to {rho_bound} amplify errors up to {:.0}×: the hierarchy's link \
+                     tolerance {} could cost b {amplified:.1e}, more than --max-error {:e}; the \
+                     dense transport meets it (up to {BRIGHT_DENSE_MAX} elements)",
+                    amplification, settings.link_tolerance, settings.max_error
+                ),
+            }
+        }
         TransportKind::Auto if n <= DENSE_CROSSOVER => TransportChoice {
             kind: TransportKind::Dense,
             reason: format!(

@@ -190,6 +190,7 @@ fn setting(group: &str, label: String, subdivision: Subdivision, estimator: Esti
         contour: contour(),
         samples: form_factor::visibility::DEFAULT_SAMPLES,
         solve: Solve::Direct,
+        max_error: None,
     }
 }
 
@@ -331,6 +332,7 @@ fn cube_sweep(cube: &Scene, options: &Options, rows: &mut Vec<Row>) -> Result<Cu
             p.estimator,
         );
         s.samples = p.visibility_samples;
+        s.max_error = Some(p.max_error);
         settings.push(s);
     }
 
@@ -532,6 +534,7 @@ fn cornell_sweep(cornell: &Scene, rows: &mut Vec<Row>) -> Result<CornellSummary>
             p.estimator,
         );
         s.samples = p.visibility_samples;
+        s.max_error = Some(p.max_error);
         settings.push(s);
     }
     for s in settings {
@@ -592,6 +595,7 @@ mod tests {
                 p.estimator,
             );
             s.samples = p.visibility_samples;
+            s.max_error = Some(p.max_error);
             let run = measure::bake_once(&cube, &s).unwrap();
             let means = measure::polygon_means(&run.mesh, &run.b);
             let error = measure::max_relative(&means, &extrapolated);

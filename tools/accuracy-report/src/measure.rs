@@ -72,6 +72,9 @@ pub struct Setting {
     pub contour: ContourOptions,
     pub samples: u32,
     pub solve: Solve,
+    /// A preset's target error of b: `auto`'s tolerance is then derived from it and ρ_max as
+    /// `--quality` does (`None`: the estimator as given).
+    pub max_error: Option<f64>,
 }
 
 /// A finished bake and what it cost.
@@ -115,8 +118,12 @@ pub fn bake_once(scene: &Scene, setting: &Setting) -> Result<Run> {
     };
     let mut settings = bake_core::Settings::resolve(&request, &scene.polygons)?;
     settings.estimator = setting.estimator;
-    // The sweep measures each estimator and tolerance as given, not the one --max-error derives.
-    settings.derive_tolerance = false;
+    // The sweep measures each estimator and tolerance as given, except a preset's, whose
+    // tolerance --max-error derives.
+    settings.derive_tolerance = setting.max_error.is_some();
+    if let Some(e) = setting.max_error {
+        settings.max_error = e;
+    }
     settings.contour = setting.contour;
     settings.visibility_samples = setting.samples;
     settings.dense_solve = match setting.solve {
