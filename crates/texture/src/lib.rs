@@ -10,6 +10,7 @@
 //! each cell), per cell between texel centres for the default linear filter (bilinear there;
 //! integrated by the degree-2 edge-midpoint rule on a fan, exact for bilinear functions), with
 //! the sampler's wrap modes. Mip levels are never used: they average more than the element.
+//! [`sample_alpha`] reads an image's alpha as the sampler filters it, for alpha cut-outs.
 //!
 //! It is not the importer (which decodes images to linear values) and knows no elements beyond
 //! their corners.

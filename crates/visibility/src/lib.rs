@@ -13,7 +13,10 @@
 //! - [`Occluders::element_pair`] is the per-element-pair entry point: a cheap conservative
 //!   test first (only against the polygon pair's candidate occluders), rays only when it fails;
 //! - [`Occluders::can_occlude`] and [`Occluders::visibility`] are its two halves, for any
-//!   [`Patch`]es; [`Counters`] sums what the calls did, for the bake report.
+//!   [`Patch`]es; [`Counters`] sums what the calls did, for the bake report;
+//! - [`Occluders::with_cutouts`] gives polygons alpha cut-outs: a [`Cutout`] per polygon says
+//!   whether it is there at a point, and rays pass where it is not. The caller builds them
+//!   (bake-core, from `alphaMode` `MASK` textures): this crate knows no textures.
 //!
 //! Robustness (all tolerances scale with the scene's bounding-box diagonal `s`):
 //! - points within [`PLANE_TOLERANCE`] × s of a plane count as on it: coplanar neighbours are
