@@ -5,7 +5,8 @@
 //! π Σ H A must be I × the solid angle of
 //! the grate's open cells (closed form, Van Oosterom–Strackee) within 2%, and the same grate
 //! made `OPAQUE` passes nothing (but the rim the shadow rays' lift lets through, < 0.1%).
-//! Each grate element's ρ is its opaque share (cut-out texels average in as 0).
+//! Each grate element's ρ is its opaque share (cut-out texels average in as 0). Under a sun
+//! straight down the grate passes half its area's light within 2%.
 
 mod common;
 
@@ -32,7 +33,7 @@ fn checker_png() -> String {
 
 /// The floor (y = 0, [−2, 2]², facing up) and the grate (y = 2, [−1, 1]², facing down,
 /// TEXCOORD_0 u = (x + 1)/2, v = (z + 1)/2), two triangles each.
-fn scene(alpha_mode: &str) -> Value {
+fn scene(alpha_mode: &str, sun: bool) -> Value {
     let quad = |y: f32, s: f32, up: bool| {
         let mut c = [[-s, y, -s], [s, y, -s], [s, y, s], [-s, y, s]];
         if up {
@@ -60,12 +61,18 @@ fn scene(alpha_mode: &str) -> Value {
         "scenes": [{ "nodes": [0, 1, 2] }],
         "extensionsUsed": ["KHR_lights_punctual"],
         "extensions": { "KHR_lights_punctual": { "lights": [
-            { "type": "point", "intensity": INTENSITY, "color": [1.0, 1.0, 1.0] }
+            if sun {
+                json!({ "type": "directional", "intensity": INTENSITY, "color": [1.0, 1.0, 1.0] })
+            } else {
+                json!({ "type": "point", "intensity": INTENSITY, "color": [1.0, 1.0, 1.0] })
+            }
         ] } },
         "nodes": [
             { "name": "floor", "mesh": 0 },
             { "name": "grate", "mesh": 1 },
+            // Shining along the node's −Z turned to −y: straight down.
             { "name": "lamp", "translation": [LIGHT.x, LIGHT.y, LIGHT.z],
+              "rotation": [-std::f64::consts::FRAC_1_SQRT_2, 0.0, 0.0, std::f64::consts::FRAC_1_SQRT_2],
               "extensions": { "KHR_lights_punctual": { "light": 0 } } }
         ],
         "meshes": [
@@ -121,10 +128,10 @@ fn cell_solid_angle(i: usize, j: usize) -> f64 {
 
 /// The floor's flux π Σ H A from the report (the floor is black and the grate's white
 /// underside sees only it, so H is the direct light), the warnings and the report.
-fn floor_flux(alpha_mode: &str) -> (f64, Vec<String>, Value) {
+fn floor_flux(alpha_mode: &str, sun: bool, subdiv: &str) -> (f64, Vec<String>, Value) {
     let dir = tempfile::tempdir().expect("a temporary directory");
     let input = dir.path().join("grate.gltf");
-    write_json(&input, &scene(alpha_mode));
+    write_json(&input, &scene(alpha_mode, sun));
     let out = dir.path().join("out.gltf");
     let report = dir.path().join("report.json");
     let run = bake([
@@ -135,7 +142,9 @@ fn floor_flux(alpha_mode: &str) -> (f64, Vec<String>, Value) {
         "--quality".as_ref(),
         "high".as_ref(),
         "--subdiv".as_ref(),
-        "12".as_ref(),
+        subdiv.as_ref(),
+        "--light-samples".as_ref(),
+        "900".as_ref(),
         "--report".as_ref(),
         report.as_os_str(),
     ])
@@ -186,7 +195,7 @@ fn a_masked_grate_passes_its_open_share_of_a_point_lights_flux() {
         .map(|(i, j)| cell_solid_angle(i, j))
         .sum();
     let want = INTENSITY * open_angle;
-    let (got, warnings, report) = floor_flux("MASK");
+    let (got, warnings, report) = floor_flux("MASK", false, "12");
     println!(
         "masked grate: floor flux {got:.4}, I × open solid angle {want:.4} (open share {:.4}), \
          relative {:.2e}",
@@ -217,6 +226,34 @@ fn a_masked_grate_passes_its_open_share_of_a_point_lights_flux() {
     assert_eq!(grate, 144);
     // Opaque, the same grate casts a full shadow on the floor it exactly covers (up to the
     // shadow rays' lift off the floor, which lets a sliver at the rim see past the edge).
-    let (closed, _, _) = floor_flux("OPAQUE");
+    let (closed, _, _) = floor_flux("OPAQUE", false, "12");
     assert!(closed <= 1e-3 * want, "{closed}");
+}
+
+/// The same grate under a sun shining straight down (E = INTENSITY lux): the floor outside
+/// the grate's shadow gets E × 12 m² exactly, and through the grate it gets its open share
+/// (1/2 of the grate's 4 m², orthographic) within 2%: the sun's exact shadow clipping gives
+/// way to shadow rays where an occluder has cut-outs.
+#[test]
+fn a_masked_grate_passes_its_open_share_of_sunlight() {
+    // 10 × 10 floor elements: their ray strata do not line up with the checker's cells.
+    let (masked, warnings, report) = floor_flux("MASK", true, "10");
+    // The grate's cut-outs turned its shadow from exact clipping into rays.
+    let light = &report["lights"][0];
+    assert!(
+        light["rays_cast"].as_u64().is_some_and(|r| r > 0),
+        "{light}"
+    );
+    assert_eq!(light["elements_clipped"], 0, "{light}");
+    let (solid, _, _) = floor_flux("OPAQUE", true, "10");
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let outside = INTENSITY * 12.0;
+    assert!(
+        (solid - outside).abs() <= 1e-9 * outside,
+        "{solid} vs {outside}"
+    );
+    let passed = masked - outside;
+    let want = INTENSITY * 4.0 * 0.5;
+    println!("sun: through the grate {passed:.8}, open share × E × 4 m² = {want:.4}");
+    assert!((passed - want).abs() <= 0.02 * want, "{passed} vs {want}");
 }

@@ -165,17 +165,6 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     stage("mesh", &mut lap);
 
     let cutouts = cutouts(scene);
-    let masked = cutouts.iter().filter(|c| c.is_some()).count();
-    if masked > 0
-        && scene
-            .lights
-            .iter()
-            .any(|l| l.kind == importer::LightKind::Directional)
-    {
-        warnings.push(format!(
-                "{masked} alpha-masked polygons cast solid sun shadows (a sun's shadows are clipped exactly, without the cut-outs)"
-            ));
-    }
     let occluders = Occluders::new(&scene.polygons)?.with_cutouts(cutouts);
     stage("visibility_setup", &mut lap);
 
