@@ -124,14 +124,7 @@ fn bake_uv(dir: &Path, name: &str, doc: &Value, mode: &str) -> (common::Run, Val
 /// A 2×2 PNG as a data URI (for a texture that reads TEXCOORD_1).
 fn png_uri() -> String {
     let image = image::RgbImage::from_pixel(2, 2, image::Rgb([200, 200, 200]));
-    let mut bytes = Vec::new();
-    image::DynamicImage::ImageRgb8(image)
-        .write_to(
-            &mut std::io::Cursor::new(&mut bytes),
-            image::ImageFormat::Png,
-        )
-        .expect("encode a PNG");
-    format!("data:image/png;base64,{}", common::base64(&bytes))
+    common::png_data_uri(image::DynamicImage::ImageRgb8(image))
 }
 
 #[test]

@@ -141,6 +141,18 @@ pub fn data_uri(bytes: &[u8]) -> String {
     format!("data:application/octet-stream;base64,{}", base64(bytes))
 }
 
+/// `image` encoded as a PNG data URI (for textures embedded in written glTF).
+pub fn png_data_uri(image: image::DynamicImage) -> String {
+    let mut bytes = Vec::new();
+    image
+        .write_to(
+            &mut std::io::Cursor::new(&mut bytes),
+            image::ImageFormat::Png,
+        )
+        .expect("encode a PNG");
+    format!("data:image/png;base64,{}", base64(&bytes))
+}
+
 /// Little-endian f32 bytes of the positions.
 pub fn position_bytes(positions: &[[f32; 3]]) -> Vec<u8> {
     positions

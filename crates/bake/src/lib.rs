@@ -223,7 +223,8 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     }
     stage("mesh", &mut lap);
 
-    let occluders = Occluders::new(&scene.polygons)?;
+    let cutouts = cutouts(scene);
+    let occluders = Occluders::new(&scene.polygons)?.with_cutouts(cutouts);
     stage("visibility_setup", &mut lap);
 
     // Punctual lights: E per element, its irradiance E/π in b's unit (a diffuse surface under
@@ -928,6 +929,46 @@ pub fn available_memory() -> Option<u64> {
     let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib * 1024)
+}
+
+/// Per polygon whose material has alpha cut-outs (`alphaMode` `MASK`): whether it is there
+/// at a point, `factor × alpha ≥ cutoff` with the base-colour texture's alpha (filtered and
+/// wrapped by its sampler) at the point's texture coordinates.
+fn cutouts(scene: &Scene) -> Vec<Option<visibility::Cutout>> {
+    // One shared copy of each masked image.
+    let mut shared: std::collections::HashMap<usize, std::sync::Arc<importer::Image>> =
+        std::collections::HashMap::new();
+    scene
+        .polygons
+        .iter()
+        .enumerate()
+        .map(|(k, polygon)| {
+            let mask = (*scene.alpha_masks.get(polygon.material)?)?;
+            let material = scene.materials.get(polygon.material)?;
+            let Some(reference) = material.base_color_texture.clone() else {
+                // No texture: there everywhere or nowhere.
+                let there = mask.factor >= mask.cutoff;
+                return Some(std::sync::Arc::new(move |_| there) as visibility::Cutout);
+            };
+            let texture = scene.textures.get(reference.texture)?.clone();
+            let image = match shared.get(&texture.image) {
+                Some(image) => image.clone(),
+                None => {
+                    let image = std::sync::Arc::new(scene.images.get(texture.image)?.clone());
+                    shared.insert(texture.image, image.clone());
+                    image
+                }
+            };
+            let uv = scene.uvs.get(k)?.clone()?;
+            let set = reference.tex_coord as usize;
+            Some(std::sync::Arc::new(move |point: glam::DVec3| {
+                uv.at(set, point).is_none_or(|t| {
+                    let a = texture::sample_alpha(&texture, &image, reference.apply(t));
+                    mask.factor * a >= mask.cutoff
+                })
+            }) as visibility::Cutout)
+        })
+        .collect()
 }
 
 /// Per element: ρ and e of its polygon's material (the one place they are gathered): the

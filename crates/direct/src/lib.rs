@@ -12,7 +12,9 @@
 //!   from the light (∫ cos θ / r² dA = Ω), per triangle by Van Oosterom & Strackee (1983);
 //! - a directional light of illuminance E⊥ gives `E⊥ cos θ` times the element's lit share,
 //!   which is found exactly: the occluders are projected along the light onto the element's
-//!   plane, clipped to it, and the area of their union (`clip::union_area`) is subtracted.
+//!   plane, clipped to it, and the area of their union (`clip::union_area`) is subtracted;
+//!   an element whose candidate occluders include one with alpha cut-outs is sampled by
+//!   stratified shadow rays instead (a cut-out has no exact shadow polygon).
 //!
 //! Sampled where none does: elements a spot's cone edge crosses, or inside a light's `range`
 //! window, are cut into k × k sub-cells of exact solid angle weighted by the falloff at their
@@ -221,7 +223,7 @@ impl<'a> LightPass<'a> {
         }
         let g = match self.light.kind {
             LightKind::Directional => {
-                self.directional(&patch, polygon_shadowed, scratch, &mut stats)
+                self.directional(&patch, i, polygon_shadowed, scratch, &mut stats)
             }
             _ => self.point(&patch, i, area, polygon_shadowed, &mut stats),
         };
@@ -321,6 +323,7 @@ impl<'a> LightPass<'a> {
     fn directional(
         &self,
         patch: &Patch,
+        i: usize,
         polygon_shadowed: bool,
         scratch: &mut Scratch,
         stats: &mut LightStats,
@@ -341,9 +344,46 @@ impl<'a> LightPass<'a> {
             return cos;
         }
         stats.elements_shadowed = 1;
+        if scratch
+            .candidates
+            .iter()
+            .any(|&k| self.occluders.has_cutouts(k))
+        {
+            // An occluder with alpha cut-outs has no exact shadow polygon: rays.
+            return cos * self.sampled_share(patch, i, stats);
+        }
         stats.elements_clipped = 1;
         let lit = self.lit_share(patch, cos, scratch);
         cos * lit
+    }
+
+    /// The share of `patch` lit by the sun from stratified, per-element-seeded shadow rays
+    /// (one per cell, weighted by the cell's area), for occluders with alpha cut-outs.
+    fn sampled_share(&self, patch: &Patch, i: usize, stats: &mut LightStats) -> f64 {
+        let n = patch.normal();
+        let lift = n * self.occluders.ray_offset();
+        let polygon = patch.polygon();
+        let mut rng = SplitMix64::new(pair_seed(i, self.index) ^ 0x0073_756e);
+        let (mut lit, mut total) = (0.0, 0.0);
+        for_each_cell(patch.corners(), self.strata, |cell, _, jitter| {
+            let area = if cell.len() == 4 {
+                0.5 * (cell[2] - cell[0]).cross(cell[3] - cell[1]).length()
+            } else {
+                0.5 * (cell[1] - cell[0]).cross(cell[2] - cell[0]).length()
+            };
+            total += area;
+            let p = jitter([rng.next_f64(), rng.next_f64()]) + lift;
+            let end = p - self.light.direction * self.reach;
+            stats.rays_cast += 1;
+            if !self.occluders.segment_blocked(p, end, [polygon, polygon]) {
+                lit += area;
+            }
+        });
+        if total > 0.0 {
+            (lit / total).clamp(0.0, 1.0)
+        } else {
+            1.0
+        }
     }
 
     /// The share of `patch` no candidate occluder's shadow covers: each occluder's part in

@@ -341,16 +341,12 @@ fn build_scene(
             if !std::mem::replace(&mut checked[material_index], true) {
                 let name = describe("material", material.name.as_deref(), material_index);
                 check_material(material, &format!("{name} used by {label}"))?;
-                // Alpha cut-outs are not baked: the whole surface reflects and blocks light.
+                // Blending is not baked: the whole surface reflects and blocks light (MASK
+                // cut-outs are, `alpha_masks`).
                 let mode = root.materials.get(material_index).map(|m| &m.alpha_mode);
-                let alpha = match mode {
-                    Some(Checked::Valid(gltf::json::material::AlphaMode::Mask)) => Some("MASK"),
-                    Some(Checked::Valid(gltf::json::material::AlphaMode::Blend)) => Some("BLEND"),
-                    _ => None,
-                };
-                if let Some(alpha) = alpha {
+                if let Some(Checked::Valid(gltf::json::material::AlphaMode::Blend)) = mode {
                     warnings.push(format!(
-                        "{name}: alphaMode {alpha} is baked opaque (the whole surface reflects and blocks light)"
+                        "{name}: alphaMode BLEND is baked opaque (the whole surface reflects and blocks light)"
                     ));
                 }
             }
@@ -384,8 +380,9 @@ fn build_scene(
     if polygons.is_empty() {
         return Err(ImportError::Empty);
     }
-    let loaded = crate::texture::load(root, buffers, files, &mut materials, &checked)?;
-    warnings.extend(loaded.warnings);
+    let mut loaded = crate::texture::load(root, buffers, files, &mut materials, &checked)?;
+    warnings.extend(std::mem::take(&mut loaded.warnings));
+    let alpha_masks = alpha_masks(root, &mut materials, &mut loaded);
     let uvs = polygon_uvs(&polygons, &materials, &loaded.authored, &layout, &cache)?;
     Ok(Scene {
         polygons,
@@ -395,6 +392,7 @@ fn build_scene(
         images: loaded.images,
         uvs,
         authored: loaded.authored,
+        alpha_masks,
         layout,
         stats,
         warnings,
@@ -480,6 +478,58 @@ fn polygon_uvs(
             }))
         })
         .collect()
+}
+
+/// Per material: its alpha cut-out (`alphaMode` `MASK`). A masked material's decoded
+/// base-colour image is replaced by a copy that is 0 where factor × alpha < cutoff, so an
+/// element's ρ averages only its opaque texels, weighted by their coverage; the copy keeps
+/// the alpha for the visibility test.
+fn alpha_masks(
+    root: &Root,
+    materials: &mut [Material],
+    loaded: &mut crate::texture::Loaded,
+) -> Vec<Option<crate::AlphaMask>> {
+    let mut masks = vec![None; materials.len()];
+    for (k, material) in materials.iter_mut().enumerate() {
+        let Some(json) = root.materials.get(k) else {
+            continue;
+        };
+        if json.alpha_mode != Checked::Valid(gltf::json::material::AlphaMode::Mask) {
+            continue;
+        }
+        let mask = crate::AlphaMask {
+            cutoff: f64::from(json.alpha_cutoff.map_or(0.5, |c| c.0)),
+            factor: f64::from(json.pbr_metallic_roughness.base_color_factor.0[3]),
+        };
+        masks[k] = Some(mask);
+        let Some(reference) = material.base_color_texture.as_mut() else {
+            if mask.factor < mask.cutoff {
+                // Cut out everywhere: reflects nothing (and blocks nothing).
+                material.rho = [0.0; 3];
+            }
+            continue;
+        };
+        let Some(texture) = loaded.textures.get(reference.texture).cloned() else {
+            continue;
+        };
+        let Some(image) = loaded.images.get(texture.image) else {
+            continue;
+        };
+        let mut masked = image.clone();
+        for (k, t) in masked.texels.iter_mut().enumerate() {
+            let alpha = f64::from(masked.alpha.get(k).copied().unwrap_or(1.0)) * mask.factor;
+            if alpha < mask.cutoff {
+                *t = [0.0; 3];
+            }
+        }
+        loaded.images.push(masked);
+        loaded.textures.push(crate::Texture {
+            image: loaded.images.len() - 1,
+            ..texture
+        });
+        reference.texture = loaded.textures.len() - 1;
+    }
+    masks
 }
 
 /// Whether a node's mesh can be baked in place. A singular world matrix (a scale of 0

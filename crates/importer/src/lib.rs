@@ -79,6 +79,17 @@ pub struct Material {
     pub emissive_texture: Option<TextureRef>,
 }
 
+/// A material's alpha cut-out (glTF `alphaMode` `MASK`): the surface is absent wherever
+/// `factor` × the base-colour texture's alpha (1 without a texture, or without an alpha
+/// channel) is below `cutoff`. Absent texels neither reflect nor block light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AlphaMask {
+    /// `alphaCutoff` (glTF default 0.5).
+    pub cutoff: f64,
+    /// `baseColorFactor`'s alpha.
+    pub factor: f64,
+}
+
 /// One source triangle of a textured polygon: world positions and, per TEXCOORD set (0, 1),
 /// its corners' texture coordinates.
 #[derive(Clone, Debug, PartialEq)]
@@ -288,6 +299,10 @@ pub struct Scene {
     pub uvs: Vec<Option<PolygonUv>>,
     /// The materials, textures and encoded images as authored, for outputs that keep them.
     pub authored: Authored,
+    /// Per [`Scene::materials`] entry: its alpha cut-out, for `alphaMode` `MASK`. The
+    /// material's decoded base-colour image then holds 0 where it is cut out (so ρ averages
+    /// the opaque texels) and its alpha in [`Image::alpha`].
+    pub alpha_masks: Vec<Option<AlphaMask>>,
     pub layout: Layout,
     pub stats: ImportStats,
     /// One line per thing the user should know about (dropped faces, skipped primitives).

@@ -411,6 +411,7 @@ fn build_scene(
         return Err(ImportError::Empty);
     }
     let polygon_count = polygons.len();
+    let alpha_masks = vec![None; materials.len()];
     Ok(Scene {
         polygons,
         materials,
@@ -419,6 +420,7 @@ fn build_scene(
         images: Vec::new(),
         uvs: vec![None; polygon_count],
         authored: Default::default(),
+        alpha_masks,
         layout,
         stats,
         warnings,

@@ -21,6 +21,8 @@ pub struct Image {
     pub width: u32,
     pub height: u32,
     pub texels: Vec<[f32; 3]>,
+    /// Linear alpha per texel when the file has an alpha channel (else empty: opaque).
+    pub alpha: Vec<f32>,
 }
 
 /// How texture coordinates outside [0, 1] wrap (glTF sampler `wrapS`/`wrapT`).
@@ -519,8 +521,9 @@ pub(crate) fn decode_image(bytes: &[u8], source: usize) -> Result<Image, String>
         ));
     }
     let decoded = image::load_from_memory_with_format(bytes, format)
-        .map_err(|e| format!("image {source} cannot be decoded: {e}"))?
-        .to_rgb8();
+        .map_err(|e| format!("image {source} cannot be decoded: {e}"))?;
+    let has_alpha = decoded.color().has_alpha();
+    let decoded = decoded.to_rgba8();
     // glTF: base-colour and emissive textures are sRGB-encoded.
     let table: Vec<f32> = (0..256)
         .map(|v| srgb_to_linear(f64::from(v as u8) / 255.0) as f32)
@@ -535,10 +538,17 @@ pub(crate) fn decode_image(bytes: &[u8], source: usize) -> Result<Image, String>
             ]
         })
         .collect();
+    // glTF: alpha is linear.
+    let alpha = if has_alpha {
+        decoded.pixels().map(|p| f32::from(p[3]) / 255.0).collect()
+    } else {
+        Vec::new()
+    };
     Ok(Image {
         width: decoded.width(),
         height: decoded.height(),
         texels,
+        alpha,
     })
 }
 

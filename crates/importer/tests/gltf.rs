@@ -305,9 +305,12 @@ fn emissive_strength_multiplies_the_emissive_factor() {
 }
 
 #[test]
-fn masked_and_blended_materials_are_baked_opaque_with_a_warning() {
-    for (mode, warned) in [("OPAQUE", false), ("MASK", true), ("BLEND", true)] {
-        let material = json!({ "name": "Grate", "alphaMode": mode });
+fn blended_materials_are_baked_opaque_with_a_warning_and_masks_are_kept() {
+    for (mode, warned) in [("OPAQUE", false), ("MASK", false), ("BLEND", true)] {
+        let material = json!({
+            "name": "Grate", "alphaMode": mode, "alphaCutoff": 0.25,
+            "pbrMetallicRoughness": { "baseColorFactor": [0.5, 0.5, 0.5, 0.75] }
+        });
         let b = single(&TRIANGLE, None, Some(material));
         let scene = write_and_load(&b).unwrap();
         let line = format!("alphaMode {mode} is baked opaque");
@@ -320,6 +323,18 @@ fn masked_and_blended_materials_are_baked_opaque_with_a_warning() {
             "{mode}: {:?}",
             scene.warnings
         );
+        let mask = scene.alpha_masks[0];
+        if mode == "MASK" {
+            assert_eq!(
+                mask,
+                Some(bake_importer::AlphaMask {
+                    cutoff: 0.25,
+                    factor: 0.75
+                })
+            );
+        } else {
+            assert_eq!(mask, None);
+        }
     }
 }
 

@@ -1,5 +1,5 @@
 //! Lightmaps for a radiosity bake: charts (one per polygon; grouped across smooth, connected
-//! surfaces above [`GROUPED_ABOVE`] polygons; or the input's own `TEXCOORD_1` kept,
+//! surfaces above [`GROUPED_ABOVE`] polygons where that at least halves the charts; or the input's own `TEXCOORD_1` kept,
 //! [`UvMode`]) packed into one atlas, and per-texel irradiance reconstructed from the element
 //! solution, ready to be written as a linear EXR and an 8-bit PNG. Not here: several atlases
 //! (one atlas holds every chart, made coarser until it fits), unwrapping of curved charts
@@ -122,8 +122,8 @@ pub struct Stats {
     pub welded_vertices: usize,
     /// Times the texel size was made coarser to fit `max_size`.
     pub reductions: u32,
-    /// Charts made: one per polygon, or per group above [`GROUPED_ABOVE`] polygons; 0 for a
-    /// kept authored layout.
+    /// Charts made: one per polygon, or per group above [`GROUPED_ABOVE`] polygons (when
+    /// grouping at least halves the count); 0 for a kept authored layout.
     pub charts: usize,
 }
 
@@ -267,8 +267,17 @@ pub fn build_with(
             plan.decisions,
         ));
     }
-    if polygons.len() > GROUPED_ABOVE {
-        let layout = grouped_layout(polygons, options)?;
+    // Grouped charts where they group: at least two polygons per chart on average, or more
+    // polygons than one etagere atlas takes as regions.
+    let groups = if polygons.len() > GROUPED_ABOVE {
+        Some(group::groups(polygons))
+    } else {
+        None
+    };
+    if let Some(groups) =
+        groups.filter(|g| 2 * g.len() <= polygons.len() || polygons.len() > pack::MAX_REGIONS)
+    {
+        let layout = grouped_layout(polygons, groups, options)?;
         return Ok(assemble(
             layout,
             options,
@@ -484,9 +493,12 @@ fn assemble(
 
 /// Grouped charts ([`group`]) packed into one atlas at the requested texel size, or coarser
 /// until they fit.
-fn grouped_layout(polygons: &[Polygon], options: &Options) -> Result<Assembly, LightmapError> {
+fn grouped_layout(
+    polygons: &[Polygon],
+    groups: Vec<group::Group>,
+    options: &Options,
+) -> Result<Assembly, LightmapError> {
     let max = options.max_size;
-    let groups = group::groups(polygons);
     let area: f64 = polygons.iter().map(polygon_area).sum();
     let floor = (area / (f64::from(max) * f64::from(max))).sqrt();
     let mut texel = options.texel_size.max(floor);

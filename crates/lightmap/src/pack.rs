@@ -16,7 +16,7 @@ pub(crate) struct Packing {
 /// etagere's coordinates are 16-bit.
 const MAX_BLOCKS: u32 = u16::MAX as u32;
 /// etagere allocation ids are 16-bit.
-const MAX_REGIONS: usize = 65_000;
+pub(crate) const MAX_REGIONS: usize = 65_000;
 
 /// Packs `sizes` (even, in texels) into the smallest atlas found whose sides are at most
 /// `max` texels; `None` when none fits.

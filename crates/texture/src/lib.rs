@@ -10,6 +10,7 @@
 //! each cell), per cell between texel centres for the default linear filter (bilinear there;
 //! integrated by the degree-2 edge-midpoint rule on a fan, exact for bilinear functions), with
 //! the sampler's wrap modes. Mip levels are never used: they average more than the element.
+//! [`sample_alpha`] reads an image's alpha as the sampler filters it, for alpha cut-outs.
 //!
 //! It is not the importer (which decodes images to linear values) and knows no elements beyond
 //! their corners.
@@ -126,6 +127,33 @@ pub fn sample(texture: &Texture, image: &Image, uv: DVec2) -> [f64; 3] {
     let (x, y) = (x - 0.5, y - 0.5);
     let (i, j) = (x.floor(), y.floor());
     bilinear(texture, image, i as i64, j as i64, x - i, y - j)
+}
+
+/// The image's alpha at texture coordinate `uv`, filtered and wrapped as [`sample`] filters
+/// colour (1 for an image without alpha): what a renderer compares with `alphaCutoff`.
+pub fn sample_alpha(texture: &Texture, image: &Image, uv: DVec2) -> f64 {
+    if image.alpha.is_empty() {
+        return 1.0;
+    }
+    let at = |i: i64, j: i64| {
+        let x = wrap(i, image.width as i64, texture.wrap[0]);
+        let y = wrap(j, image.height as i64, texture.wrap[1]);
+        image
+            .alpha
+            .get((y * image.width as i64 + x) as usize)
+            .map_or(1.0, |&a| f64::from(a))
+    };
+    let (w, h) = (image.width as f64, image.height as f64);
+    let (x, y) = (uv.x * w, uv.y * h);
+    if texture.nearest {
+        return at(x.floor() as i64, y.floor() as i64);
+    }
+    let (x, y) = (x - 0.5, y - 0.5);
+    let (i, j) = (x.floor(), y.floor());
+    let (s, t) = (x - i, y - j);
+    let (i, j) = (i as i64, j as i64);
+    (1.0 - t) * ((1.0 - s) * at(i, j) + s * at(i + 1, j))
+        + t * ((1.0 - s) * at(i, j + 1) + s * at(i + 1, j + 1))
 }
 
 /// The mean of the texture over the convex polygon `uv` (texture coordinates).
@@ -328,6 +356,7 @@ mod tests {
                 width: 4,
                 height: 1,
                 texels: (0..4).map(|x| [x as f32; 3]).collect(),
+                alpha: Vec::new(),
             },
         )
     }

@@ -13,7 +13,10 @@
 //! - [`Occluders::element_pair`] is the per-element-pair entry point: a cheap conservative
 //!   test first (only against the polygon pair's candidate occluders), rays only when it fails;
 //! - [`Occluders::can_occlude`] and [`Occluders::visibility`] are its two halves, for any
-//!   [`Patch`]es; [`Counters`] sums what the calls did, for the bake report.
+//!   [`Patch`]es; [`Counters`] sums what the calls did, for the bake report;
+//! - [`Occluders::with_cutouts`] gives polygons alpha cut-outs: a [`Cutout`] per polygon says
+//!   whether it is there at a point, and rays pass where it is not. The caller builds them
+//!   (bake-core, from `alphaMode` `MASK` textures): this crate knows no textures.
 //!
 //! Robustness (all tolerances scale with the scene's bounding-box diagonal `s`):
 //! - points within [`PLANE_TOLERANCE`] × s of a plane count as on it: coplanar neighbours are
@@ -150,7 +153,13 @@ pub struct Occluders {
     pieces: Vec<Piece>,
     tree: Option<Tree>,
     scale: f64,
+    /// Per polygon, when it has cut-outs: whether it is there (blocks light) at a point.
+    cutouts: Vec<Option<Cutout>>,
 }
+
+/// Whether a polygon with alpha cut-outs is there at a world point of its plane (false: the
+/// segment passes through). Built by the caller, which knows textures; visibility only asks.
+pub type Cutout = std::sync::Arc<dyn Fn(DVec3) -> bool + Send + Sync>;
 
 impl Occluders {
     /// A BVH over `polygons` (3 or 4 finite vertices each, as the importer makes them; polygon
@@ -186,7 +195,21 @@ impl Occluders {
             pieces,
             tree,
             scale,
+            cutouts: Vec::new(),
         })
+    }
+
+    /// The same occluders, polygon k blocking a segment only where `cutouts[k]` (if any) says
+    /// it is there (alpha cut-outs). The conservative tests (`can_occlude`, `can_shadow`)
+    /// still count such polygons as occluders; only rays look through them.
+    pub fn with_cutouts(mut self, cutouts: Vec<Option<Cutout>>) -> Occluders {
+        self.cutouts = cutouts;
+        self
+    }
+
+    /// Whether polygon `k` has cut-outs.
+    pub fn has_cutouts(&self, k: usize) -> bool {
+        self.cutouts.get(k).is_some_and(Option::is_some)
     }
 
     /// Number of polygons.
@@ -348,12 +371,27 @@ impl Occluders {
     }
 
     /// Whether the segment p–q is blocked by a polygon other than those in `skip` (exact f64
-    /// test, polygon edges included, either side of a polygon).
+    /// test, polygon edges included, either side of a polygon; a polygon with cut-outs only
+    /// where it is there).
     pub fn segment_blocked(&self, p: DVec3, q: DVec3, skip: [usize; 2]) -> bool {
         let Some(tree) = &self.tree else { return false };
         let edge_tol = 1e-9 * self.scale;
         tree.any_on_segment(p, q, |k| {
-            k != skip[0] && k != skip[1] && self.pieces[k].hits_segment(p, q, edge_tol)
+            k != skip[0]
+                && k != skip[1]
+                && self.pieces[k].hits_segment(p, q, edge_tol)
+                && self
+                    .cutouts
+                    .get(k)
+                    .and_then(Option::as_ref)
+                    .is_none_or(|there| {
+                        // Where the segment crosses the polygon's plane.
+                        let piece = &self.pieces[k];
+                        let n = piece.patch.normal();
+                        let (dp, dq) = (n.dot(p) - piece.offset, n.dot(q) - piece.offset);
+                        let t: f64 = if dp == dq { 0.0 } else { dp / (dp - dq) };
+                        there(p + (q - p) * t.clamp(0.0, 1.0))
+                    })
         })
     }
 

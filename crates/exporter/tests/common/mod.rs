@@ -58,6 +58,7 @@ pub fn fixture() -> Fixture {
         images: Vec::new(),
         uvs: vec![None; polygon_count],
         authored: Default::default(),
+        alpha_masks: vec![None; 8],
         layout,
         stats: ImportStats {
             faces_read: 12,
