@@ -257,3 +257,34 @@ fn a_masked_grate_passes_its_open_share_of_sunlight() {
     println!("sun: through the grate {passed:.8}, open share × E × 4 m² = {want:.4}");
     assert!((passed - want).abs() <= 0.02 * want, "{passed} vs {want}");
 }
+
+#[test]
+fn a_white_texture_on_a_white_factor_is_rho_one_not_more() {
+    // The texture's mean over an element is a sum of per-piece means weighted by area: in
+    // floating point it can round above 1 for an all-white texture, and ρ > 1 is refused.
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let input = dir.path().join("white.gltf");
+    let mut doc = scene("OPAQUE", false);
+    doc["materials"][1]["pbrMetallicRoughness"]["baseColorFactor"] = json!([1.0, 1.0, 1.0, 1.0]);
+    write_json(&input, &doc);
+    let report = dir.path().join("report.json");
+    for subdiv in ["5", "7", "12"] {
+        let run = bake([
+            input.as_os_str(),
+            dir.path().join("out.gltf").as_os_str(),
+            "--target".as_ref(),
+            "vertex".as_ref(),
+            "--subdiv".as_ref(),
+            subdiv.as_ref(),
+            "--report".as_ref(),
+            report.as_os_str(),
+        ]);
+        assert_eq!(run.code, Some(0), "--subdiv {subdiv}: {}", run.stderr);
+        let report: Value =
+            serde_json::from_str(&std::fs::read_to_string(&report).expect("report")).expect("JSON");
+        for e in report["elements"].as_array().expect("elements") {
+            let rho = e["rho"][0].as_f64().expect("rho");
+            assert!(rho <= 1.0, "--subdiv {subdiv}: rho {rho}");
+        }
+    }
+}

@@ -1000,7 +1000,10 @@ pub fn element_values(scene: &Scene, mesh: &ElementMesh) -> (Vec<[f64; BANDS]>, 
                     .collect();
                 let mean =
                     texture::element_mean(uv, reference, texture, image, &corners, el.normal);
-                [0, 1, 2].map(|c| factor[c] * mean[c])
+                // Decoded texels are in [0, 1], so is their exact mean; the area-weighted sum
+                // of per-piece means can round a white texture's just above 1 (ρ > 1 is
+                // refused), hence the clamp.
+                [0, 1, 2].map(|c| factor[c] * mean[c].clamp(0.0, 1.0))
             };
             let mut rho = textured(m.rho, &m.base_color_texture);
             // The input's COLOR_0 multiplies the base colour (glTF): its exact mean.
@@ -1011,7 +1014,9 @@ pub fn element_values(scene: &Scene, mesh: &ElementMesh) -> (Vec<[f64; BANDS]>, 
                     .map(|&k| mesh.vertices[k as usize])
                     .collect();
                 if let Some(c) = texture::element_colour_mean(uv, &corners, el.normal) {
-                    rho = [0, 1, 2].map(|k| rho[k] * c[k]);
+                    // In [0, 1] like the colours (the importer refuses others): clamp the
+                    // rounding of the area-weighted mean as for textures.
+                    rho = [0, 1, 2].map(|k| rho[k] * c[k].clamp(0.0, 1.0));
                 }
             }
             (rho, textured(m.emission, &m.emissive_texture))
