@@ -305,6 +305,14 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         if let (Some(built), Some(map)) = (&lightmap, report.options.as_object_mut()) {
             map.insert("lightmap_layout".into(), lightmap_layout(built));
         }
+        // The summary needs only area and b: drop the list before filling in what only the
+        // list shows.
+        let (which, warning) = report_elements(cli.report_elements, mesh.elements.len());
+        if let Some(line) = warning {
+            warn(std::slice::from_ref(&line));
+            warnings.push(line);
+        }
+        report.keep_elements(which);
         for (i, entry) in report.elements.iter_mut().enumerate() {
             // ρ and e as the bake used them (textures averaged over the element).
             entry.rho = bake.rho[i];
@@ -346,12 +354,6 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             imbalance: energy.imbalance,
             imbalance_relative: energy.imbalance_relative,
         });
-        let (which, warning) = report_elements(cli.report_elements, mesh.elements.len());
-        if let Some(line) = warning {
-            warn(std::slice::from_ref(&line));
-            warnings.push(line);
-        }
-        report.keep_elements(which);
         let a = &bake.accuracy;
         report.accuracy = Some(AccuracyInfo {
             max_error: a.max_error,

@@ -319,7 +319,12 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
                     passes: LINK_PASSES,
                     max_links,
                 };
-                let key = links_key(scene, &mesh, settings);
+                // Hashing every polygon only when links are saved or loaded.
+                let key = if settings.save_links || settings.load_links.is_some() {
+                    links_key(scene, &mesh, settings)
+                } else {
+                    0
+                };
                 let built = if let Some(path) = &settings.load_links {
                     progress.start("loading links", 0);
                     let loaded = load_links(path, scene, &mesh, key);

@@ -89,26 +89,9 @@ impl OutputSet {
         path: &Path,
         write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
     ) -> Result<(), ExportError> {
-        let temporary = temporary_path_for(path);
-        let result = fs::File::create(&temporary).and_then(|file| {
-            let mut buffered = std::io::BufWriter::with_capacity(1 << 20, file);
-            write(&mut buffered)?;
-            let file = buffered.into_inner().map_err(|e| e.into_error())?;
-            file.sync_all()
-        });
-        match result {
-            Ok(()) => {
-                self.staged.push((temporary, path.to_path_buf()));
-                Ok(())
-            }
-            Err(source) => {
-                remove_quietly(&temporary);
-                Err(ExportError::Io {
-                    path: path.to_path_buf(),
-                    source,
-                })
-            }
-        }
+        let temporary = write_temporary_with(path, write)?;
+        self.staged.push((temporary, path.to_path_buf()));
+        Ok(())
     }
 
     /// Moves `other`'s staged files to the end of this set (renamed after this set's).
@@ -241,9 +224,19 @@ pub fn remove_stale_temporaries(targets: &[PathBuf]) -> usize {
 
 /// Writes the temporary for `path` and returns its path; removes it again on error.
 pub(crate) fn write_temporary(path: &Path, bytes: &[u8]) -> Result<PathBuf, ExportError> {
+    write_temporary_with(path, |w| w.write_all(bytes))
+}
+
+/// Writes a temporary for `path` through `write` (buffered), synced; removed on failure.
+fn write_temporary_with(
+    path: &Path,
+    write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<PathBuf, ExportError> {
     let temporary = temporary_path_for(path);
-    let result = fs::File::create(&temporary).and_then(|mut file| {
-        file.write_all(bytes)?;
+    let result = fs::File::create(&temporary).and_then(|file| {
+        let mut buffered = std::io::BufWriter::with_capacity(1 << 20, file);
+        write(&mut buffered)?;
+        let file = buffered.into_inner().map_err(|e| e.into_error())?;
         file.sync_all()
     });
     match result {
