@@ -392,7 +392,7 @@ pub fn max_pair_evaluations(options: &ContourOptions) -> u64 {
 }
 
 /// What [`surface_screen`] finds out about a pair without integrating it.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug)]
 pub struct PairScreen {
     pub kind: PairKind,
     /// `A_a F_ab` (unoccluded) by a point rule: the mean of the point-to-surface kernel over
@@ -403,6 +403,9 @@ pub struct PairScreen {
     /// Per side (`a`, then `b`): the kernel towards the other side sampled at points of the
     /// side (its centroid, the midpoints towards its corners, points 95 % of the way to them).
     pub sides: [SideScreen; 2],
+    /// The pair clipped in its own frame, for [`screened_pair`] to integrate without
+    /// clipping again.
+    facing: Facing,
 }
 
 /// One side of a [`PairScreen`]: how the kernel `F_{dx→other}` varies over it.
@@ -450,7 +453,27 @@ pub fn surface_screen(a: &Surface, b: &Surface, fit: [bool; 2]) -> Option<PairSc
         kind: f.kind,
         rough,
         sides: [side(fa), side(fb)],
+        facing: f,
     })
+}
+
+/// [`surface_pair`] of the pair that `screen` ([`surface_screen`] of the same `a`, `b`)
+/// looked at, reusing its clipping: the same value, bit for bit.
+pub fn screened_pair(
+    screen: &PairScreen,
+    a: &Surface,
+    b: &Surface,
+    options: &ContourOptions,
+    estimator: Estimator,
+) -> SurfacePair {
+    let f = &screen.facing;
+    let (value, evaluations, method) = estimate_pair(f, [a.normal, b.normal], options, estimator);
+    SurfacePair {
+        value,
+        kind: f.kind,
+        evaluations,
+        method,
+    }
 }
 
 /// The pair in its own frame, each surface clipped to the part in front of the other's
@@ -540,6 +563,7 @@ fn contour_with(f: &Facing, options: &ContourOptions) -> (f64, u64) {
 }
 
 /// A facing pair in its own frame, clipped.
+#[derive(Clone, Copy, Debug)]
 struct Facing {
     a: Poly,
     b: Poly,

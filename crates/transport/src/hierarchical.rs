@@ -18,8 +18,8 @@
 //! radiosity is at most `ε = link_tolerance × B̄` (B̄ the scene's area-weighted mean radiosity):
 //!
 //! ```text
-//!   error at p  =  ρ_p · B_q · (G · fit + G₀ · uncertainty) / A_p     (and p ↔ q)
-//!   fit         =  residual_p + residual_q
+//!   error at p  =  ρ_p · (B_q · (G · residual_p + G₀ · uncertainty) + ΔB_q · G · residual_q) / A_p
+//!                                                                        (and p ↔ q)
 //! ```
 //!
 //! with `residual` what a least-squares plane through the point-to-polygon kernel, sampled at
@@ -28,7 +28,10 @@
 //! value and `uncertainty` 1 when some polygon can come between the nodes (a shadow boundary
 //! may cross the pair, whatever its few shadow rays saw) or when a node straddles the other's
 //! plane (only its front part receives light, but a link spreads it over all of the node), 0
-//! otherwise. The source's term assumes B varies over it as much as B itself (conservative).
+//! otherwise. ΔB_q is how much B varies over the source (max − min over its elements, largest
+//! band): the link delivers the source's mean and first moment exactly, so what the kernel's
+//! residual over the source misses is that residual times the part of B that is not constant
+//! (0 for an element, whose B is constant, as the dense transport assumes of every source).
 //! An occludable pair that only this uncertainty would refine gets its shadow rays at once: if
 //! every one of its n rays is blocked, it is kept as a *blocked* link (value 0, uncertainty
 //! `3 / n` by the rule of three) instead of being refined down to elements; blocked links stay
@@ -58,7 +61,8 @@
 //! shadow rays are seeded by its node pair, passes visit links in a fixed order).
 
 use form_factor::{
-    surface_pair, surface_screen, ContourOptions, Estimator, Method, Occluders, PairKind, Surface,
+    screened_pair, surface_screen, ContourOptions, Estimator, Method, Occluders, PairKind,
+    PairScreen, Surface,
 };
 use glam::DVec3;
 use importer::Polygon;
@@ -195,16 +199,16 @@ struct Link {
     q: u32,
     /// `A_p F_pq`, visible part.
     g: f64,
-    /// `G · fit + G₀ · uncertainty`: the error factor of the BF criterion (the same for both
-    /// receivers).
+    /// `G₀ · uncertainty` (the visibility's share of the BF criterion's error factor, the same
+    /// for both receivers; the fit's share is computed from `g` and `residual`).
     k: f64,
     /// Whether some polygon can come between p and q (children must test again).
     occludable: bool,
-    /// Unoccluded `A_p F_pq` and the relative variation the link cannot represent (the
-    /// linear-fit residuals over both nodes), for recomputing `g` and `k` once the shadow rays
-    /// are cast.
+    /// Unoccluded `A_p F_pq`, for recomputing `g` and `k` once the shadow rays are cast.
     g0: f64,
-    fit: f32,
+    /// Per node (p, then q): the relative variation of the kernel over it that the link
+    /// cannot represent (the linear fit's residual; 0 for an element).
+    residual: [f32; 2],
     /// Per receiver (p, then q): the gradient of the unoccluded point-to-node kernel over it
     /// (world units, in its plane), the linear part of what the link delivers.
     gradient: [[f32; 3]; 2],
@@ -275,6 +279,10 @@ struct Linker<'a> {
     /// Per node: max over bands of ρ, and of the current radiosity estimate.
     rho: &'a [f64],
     b: &'a [f64],
+    /// Per node: how much that estimate varies over it (max − min over its elements).
+    spread: &'a [f64],
+    /// Per node: its elements (leaves), for deciding which pairs are worth a parallel task.
+    leaves: &'a [u64],
     epsilon: f64,
     counters: &'a Counters,
 }
@@ -297,10 +305,10 @@ impl HierarchicalTransport {
         let (nodes, children, roots) = build_trees(polygons, mesh)?;
         let counters = Counters::default();
         let node_rho = node_max(&nodes, &children, n, rho);
+        let leaves = leaf_counts(&nodes, &children, n);
 
         // Pass 1: B̄ from the furnace estimate Σ A e / Σ A (1 − ρ) (a closed grey scene's mean
         // radiosity), and B = max(e, B̄) (below).
-        let mut b_node = node_max(&nodes, &children, n, e);
         let (mut emitted, mut absorbing) = (0.0, 0.0);
         for (k, el) in mesh.elements.iter().enumerate() {
             emitted += el.area * max3(e[k]);
@@ -312,10 +320,10 @@ impl HierarchicalTransport {
             0.0
         };
         // Non-emitters are assumed at the mean in the first pass, so that links between
-        // them refine before any rays are cast for links that would not be kept.
-        for v in &mut b_node {
-            *v = v.max(mean_b);
-        }
+        // them refine before any rays are cast for links that would not be kept; how B varies
+        // over them is not known yet (0: the later passes refine where it matters).
+        let first_b: Vec<f64> = e.iter().map(|v| max3(*v).max(mean_b)).collect();
+        let (mut b_node, mut spread_node) = node_range(&nodes, &children, n, &first_b);
         let limit = options.max_links;
         let too_many = || LinkError::TooManyLinks {
             limit,
@@ -330,15 +338,18 @@ impl HierarchicalTransport {
             options,
             rho: &node_rho,
             b: &[],
+            spread: &[],
+            leaves: &leaves,
             epsilon: 0.0,
             counters: &counters,
         };
         let linker = Linker {
             b: &b_node,
+            spread: &spread_node,
             epsilon: options.link_tolerance * mean_b,
             ..base
         };
-        let culling = Culling::new(&nodes, &roots);
+        let culling = Culling::new(&nodes, &roots, &leaves);
         let first = culling.initial(&linker, progress);
         if first.links.len() as u64 > limit {
             return Err(too_many());
@@ -357,14 +368,17 @@ impl HierarchicalTransport {
                 entries: &entries,
                 accuracy,
             };
+            // B steers refinement only: a percent is plenty, and no condition estimate.
             let coarse = IterativeOptions {
-                tolerance: 1e-3,
+                tolerance: 1e-2,
                 max_iterations: 500,
+                condition: false,
                 ..IterativeOptions::default()
             };
             let solution = solver::solve_iterative(&op, rho, e, &coarse)?;
             drop(entries);
-            b_node = node_max(&nodes, &children, n, &solution.b);
+            let solved: Vec<f64> = solution.b.iter().map(|v| max3(*v)).collect();
+            (b_node, spread_node) = node_range(&nodes, &children, n, &solved);
             let mean = mesh
                 .elements
                 .iter()
@@ -374,6 +388,7 @@ impl HierarchicalTransport {
                 / total_area.max(f64::MIN_POSITIVE);
             let linker = Linker {
                 b: &b_node,
+                spread: &spread_node,
                 epsilon: options.link_tolerance * mean,
                 ..base
             };
@@ -631,16 +646,21 @@ impl Linker<'_> {
     /// the pair and, where it refines, of its children. `occludable`: whether the parent pair
     /// could be occluded (children of an unoccludable pair cannot be).
     fn link(&self, p: u32, q: u32, occludable: bool, out: &mut Vec<Link>) {
-        let Some(link) = self.evaluate(p, q, occludable) else {
+        let (np, nq) = (&self.nodes[p as usize], &self.nodes[q as usize]);
+        if np.polygon == nq.polygon {
+            return;
+        }
+        // An element's own variation does not matter: it receives the exact average over
+        // itself, and as a source its radiosity is constant. (The screen is made here and
+        // borrowed below: it holds the clipped pair, too large to move around per pair.)
+        let Some(screen) = surface_screen(&np.surface, &nq.surface, [np.count > 0, nq.count > 0])
+        else {
             return;
         };
-        self.refine_or_keep(link, out);
-    }
-
-    /// Keeps `link` if it meets the tolerance or cannot be split, else links its split.
-    fn refine_or_keep(&self, link: Link, out: &mut Vec<Link>) {
+        let link = self.evaluate(p, q, occludable, &screen);
+        // Kept if it meets the tolerance or cannot be split, else its split is linked.
         match self.split(&link) {
-            None => out.push(self.finalize(link)),
+            None => out.push(self.finalize(link, &screen)),
             Some(split) => self.link_split(&link, split, out),
         }
     }
@@ -653,8 +673,33 @@ impl Linker<'_> {
         out: &mut Vec<Link>,
     ) {
         let node = &self.nodes[parent as usize];
-        for &c in &self.children[node.first as usize..(node.first + node.count) as usize] {
-            let (a, b) = if parent_is_p { (c, other) } else { (other, c) };
+        let kids = &self.children[node.first as usize..(node.first + node.count) as usize];
+        let pair = |c: u32| if parent_is_p { (c, other) } else { (other, c) };
+        // A large pair (two big polygons facing each other) is worth parallel tasks: each
+        // half into its own list, appended in order, so the links do not depend on threads.
+        let work = self.leaves[parent as usize] * self.leaves[other as usize];
+        if work > PARALLEL_ELEMENT_PAIRS && kids.len() >= 2 {
+            let (first, rest) = kids.split_at(kids.len() / 2);
+            let run = |part: &[u32], o: &mut Vec<Link>| {
+                for &c in part {
+                    let (a, b) = pair(c);
+                    self.link(a, b, link.occludable, o);
+                }
+            };
+            // The first half straight into `out`: only the second half's links are moved.
+            let ((), mut y) = rayon::join(
+                || run(first, out),
+                || {
+                    let mut o = Vec::new();
+                    run(rest, &mut o);
+                    o
+                },
+            );
+            out.append(&mut y);
+            return;
+        }
+        for &c in kids {
+            let (a, b) = pair(c);
             self.link(a, b, link.occludable, out);
         }
     }
@@ -663,19 +708,21 @@ impl Linker<'_> {
     /// visible fraction from shadow rays (done once, when a link is first kept). Links whose
     /// whole unoccluded contribution is within a quarter of the tolerance get at most 9 rays,
     /// within [`FAINT`] of it one: their visibility hardly matters.
-    fn finalize(&self, mut link: Link) -> Link {
+    fn finalize(&self, mut link: Link, screen: &PairScreen) -> Link {
         if link.final_value {
             return link;
         }
         let (np, nq) = (&self.nodes[link.p as usize], &self.nodes[link.q as usize]);
         let options = self.options;
         let c = self.counters;
-        if let Some(pair) = surface_pair(
-            &np.surface,
-            &nq.surface,
-            &options.contour,
-            options.estimator,
-        ) {
+        {
+            let pair = screened_pair(
+                screen,
+                &np.surface,
+                &nq.surface,
+                &options.contour,
+                options.estimator,
+            );
             c.kernel_evaluations
                 .fetch_add(pair.evaluations, Ordering::Relaxed);
             let method = match pair.method {
@@ -735,7 +782,7 @@ impl Linker<'_> {
             } else {
                 0.0
             };
-            link.k = link.g * f64::from(link.fit) + link.g0 * uncertainty;
+            link.k = link.g0 * uncertainty;
         }
         link.final_value = true;
         link
@@ -749,17 +796,22 @@ impl Linker<'_> {
         Some(out)
     }
 
-    /// The BF error of a link between p and q with error factor `k`: the larger over its two
-    /// receivers of `ρ_r B_s k / A_r`.
-    fn error(&self, p: u32, q: u32, k: f64) -> f64 {
+    /// The BF error of a link between p and q of value `g`, visibility error factor `k` and
+    /// kernel residuals `residual` (over p, over q): the larger over its two receivers r
+    /// (source s) of `ρ_r (B_s (g residual_r + k) + ΔB_s g residual_s) / A_r`.
+    fn error(&self, p: u32, q: u32, g: f64, k: f64, residual: [f32; 2]) -> f64 {
         let (p, q) = (p as usize, q as usize);
-        (self.rho[p] * self.b[q] * k / self.nodes[p].surface.area)
-            .max(self.rho[q] * self.b[p] * k / self.nodes[q].surface.area)
+        let [rp, rq] = residual.map(f64::from);
+        let at = |r: usize, s: usize, rr: f64, rs: f64| {
+            self.rho[r] * (self.b[s] * (g * rr + k) + self.spread[s] * g * rs)
+                / self.nodes[r].surface.area
+        };
+        at(p, q, rp, rq).max(at(q, p, rq, rp))
     }
 
     /// Whether both receivers' error is within ε.
     fn acceptable(&self, link: &Link) -> bool {
-        let error = self.error(link.p, link.q, link.k);
+        let error = self.error(link.p, link.q, link.g, link.k, link.residual);
         error <= self.epsilon || error.is_nan()
     }
 
@@ -782,14 +834,8 @@ impl Linker<'_> {
 
     /// The pair's value, error factor and visibility; `None` when the nodes cannot exchange
     /// light or every shadow ray is blocked and the pair is small enough to drop.
-    fn evaluate(&self, p: u32, q: u32, parent_occludable: bool) -> Option<Link> {
+    fn evaluate(&self, p: u32, q: u32, parent_occludable: bool, screen: &PairScreen) -> Link {
         let (np, nq) = (&self.nodes[p as usize], &self.nodes[q as usize]);
-        if np.polygon == nq.polygon {
-            return None;
-        }
-        // An element's own variation does not matter: it receives the exact average over
-        // itself, and as a source its radiosity is constant.
-        let screen = surface_screen(&np.surface, &nq.surface, [np.count > 0, nq.count > 0])?;
         let c = self.counters;
         c.pairs_evaluated.fetch_add(1, Ordering::Relaxed);
         // A node straddling the other's plane was clipped to its front part, but the link
@@ -803,8 +849,9 @@ impl Linker<'_> {
         // the source (B may vary over the source as much as B itself: the conservative
         // assumption).
         let [sp, sq] = screen.sides;
-        let fit = sp.residual + sq.residual;
-        let worst = self.error(p, q, screen.rough * (fit + 1.0));
+        let residual = [sp.residual as f32, sq.residual as f32];
+        let g = screen.rough;
+        let worst = self.error(p, q, g, g, residual);
         if parent_occludable && worst <= self.epsilon {
             occludable = true;
         } else if parent_occludable {
@@ -817,18 +864,17 @@ impl Linker<'_> {
         // Until rays say otherwise (they are cast only if the link is kept), an occludable
         // link is fully visible and fully uncertain: the largest error it can have.
         let uncertainty = if clipped || occludable { 1.0 } else { 0.0 };
-        let g = screen.rough;
         let gradient = [sp.gradient, sq.gradient].map(|v| v.as_vec3().to_array());
         let mut link = Link {
             p,
             q,
             g,
-            k: g * (fit + uncertainty),
+            k: g * uncertainty,
             occludable,
             clipped,
             blocked: false,
             g0: g,
-            fit: fit as f32,
+            residual,
             gradient,
             final_value: false,
         };
@@ -839,7 +885,7 @@ impl Linker<'_> {
         if occludable
             && !clipped
             && !self.acceptable(&link)
-            && self.error(p, q, g * fit) <= self.epsilon
+            && self.error(p, q, g, 0.0, residual) <= self.epsilon
         {
             let v = self.occluders.visibility(
                 &patch(np),
@@ -854,7 +900,7 @@ impl Linker<'_> {
                 link.k = g * blocked_uncertainty(v.rays);
             }
         }
-        Some(link)
+        link
     }
 }
 
@@ -865,6 +911,8 @@ struct Culling<'a> {
     /// Per polygon: its root's surface and its index among the occluders.
     surfaces: Vec<Surface>,
     polygon: Vec<u32>,
+    /// Per cluster: the elements of its polygons.
+    elements: Vec<u64>,
 }
 
 /// A cluster pair dropped because every shadow ray between it was blocked, with the rays it
@@ -898,19 +946,15 @@ where
     G: FnOnce(&mut Descent) + Send,
 {
     if parallel {
-        let (x, y) = rayon::join(
-            || {
-                let mut o = Descent::default();
-                first(&mut o);
-                o
-            },
+        // The first part straight into `out`: only the second part's links are moved.
+        let ((), y) = rayon::join(
+            || first(out),
             || {
                 let mut o = Descent::default();
                 second(&mut o);
                 o
             },
         );
-        out.append(x);
         out.append(y);
     } else {
         first(out);
@@ -922,15 +966,32 @@ where
 /// parallel.
 const PARALLEL_PAIRS: u64 = 4096;
 
+/// Node pairs spanning more element pairs than this are refined in parallel tasks (a task
+/// of this size takes milliseconds, far above rayon's cost per task; larger tasks would
+/// move fewer links between lists but balance worse on two polygons).
+const PARALLEL_ELEMENT_PAIRS: u64 = 1 << 16;
+
 impl<'a> Culling<'a> {
-    fn new(nodes: &[Node], roots: &'a [u32]) -> Culling<'a> {
+    fn new(nodes: &[Node], roots: &'a [u32], leaves: &[u64]) -> Culling<'a> {
         let surfaces: Vec<Surface> = roots.iter().map(|&r| nodes[r as usize].surface).collect();
         let polygon = roots.iter().map(|&r| nodes[r as usize].polygon).collect();
+        let clusters = Clusters::new(&surfaces);
+        let elements = clusters
+            .nodes
+            .iter()
+            .map(|c| {
+                clusters.order[c.first as usize..(c.first + c.count) as usize]
+                    .iter()
+                    .map(|&k| leaves[roots[k as usize] as usize])
+                    .sum()
+            })
+            .collect();
         Culling {
-            clusters: Clusters::new(&surfaces),
+            clusters,
             roots,
             surfaces,
             polygon,
+            elements,
         }
     }
 
@@ -980,7 +1041,8 @@ impl<'a> Culling<'a> {
     ) {
         let nodes = &self.clusters.nodes;
         let (ca, cb) = (nodes[a as usize], nodes[b as usize]);
-        let large = u64::from(ca.count) * u64::from(cb.count) > PARALLEL_PAIRS;
+        let large = u64::from(ca.count) * u64::from(cb.count) > PARALLEL_PAIRS
+            || self.elements[a as usize] * self.elements[b as usize] > PARALLEL_ELEMENT_PAIRS;
         if a == b {
             let Some([l, r]) = ca.children else {
                 progress(LinkProgress::Polygons(1));
@@ -1114,6 +1176,39 @@ fn patch(node: &Node) -> Patch {
 
 fn max3(v: [f64; BANDS]) -> f64 {
     v[0].max(v[1]).max(v[2])
+}
+
+/// Per node: the largest of `values` (one per element) over its elements, and that maximum
+/// minus the smallest.
+fn node_range(nodes: &[Node], children: &[u32], n: usize, values: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let mut hi = vec![0.0; nodes.len()];
+    let mut lo = vec![0.0; nodes.len()];
+    hi[..n].copy_from_slice(&values[..n]);
+    lo[..n].copy_from_slice(&values[..n]);
+    for u in n..nodes.len() {
+        let node = &nodes[u];
+        let (mut h, mut l) = (f64::NEG_INFINITY, f64::INFINITY);
+        for &c in &children[node.first as usize..(node.first + node.count) as usize] {
+            h = h.max(hi[c as usize]);
+            l = l.min(lo[c as usize]);
+        }
+        (hi[u], lo[u]) = if h >= l { (h, l) } else { (0.0, 0.0) };
+    }
+    let spread = hi.iter().zip(&lo).map(|(h, l)| h - l).collect();
+    (hi, spread)
+}
+
+/// Per node: how many elements (leaves) lie below it.
+fn leaf_counts(nodes: &[Node], children: &[u32], n: usize) -> Vec<u64> {
+    let mut out = vec![1u64; nodes.len()];
+    for u in n..nodes.len() {
+        let node = &nodes[u];
+        out[u] = children[node.first as usize..(node.first + node.count) as usize]
+            .iter()
+            .map(|&c| out[c as usize])
+            .sum();
+    }
+    out
 }
 
 /// Per node: the largest band of `values` (per element), maxed over each node's leaves.
