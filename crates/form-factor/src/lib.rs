@@ -487,19 +487,22 @@ fn facing(sa: &Surface, sb: &Surface) -> Option<Facing> {
     if ni.dot(nj) >= 1.0 - PARALLEL {
         return None;
     }
-    let (pi, pj) = (sa.poly(), sb.poly());
+    let (mut a, mut b) = (sa.poly(), sb.poly());
     // Work relative to the pair's own frame: origin between the centroids, unit = their
     // distance. ln r then stays near 0 and the result is independent of where the scene
     // sits and of its scale (the contour integral of a constant vanishes on closed loops).
     let (ci, cj) = (sa.centroid, sb.centroid);
     let origin = (ci + cj) * 0.5;
-    let unit = ci.distance(cj).max(pi.extent().max(pj.extent()) * 1e-3);
-    let (pi, pj) = (pi.in_frame(origin, unit), pj.in_frame(origin, unit));
+    let unit = ci.distance(cj).max(a.extent().max(b.extent()) * 1e-3);
+    a.move_to_frame(origin, unit);
+    b.move_to_frame(origin, unit);
     // Clip each surface to the half-space in front of the other (eq. 13 assumes both
-    // surfaces see each other wholly). Tolerance relative to the pair's size.
-    let tol = 1e-11 * (pi.extent().max(pj.extent())).max(1.0);
-    let (a, clipped_i) = pi.clip_front(pj.vertex(0), nj, tol)?;
-    let (b, clipped_j) = pj.clip_front(pi.vertex(0), ni, tol)?;
+    // surfaces see each other wholly), each by the other's unclipped plane point. Tolerance
+    // relative to the pair's size.
+    let tol = 1e-11 * (a.extent().max(b.extent())).max(1.0);
+    let (a0, b0) = (a.vertex(0), b.vertex(0));
+    let clipped_i = a.clip_front(b0, nj, tol)?;
+    let clipped_j = b.clip_front(a0, ni, tol)?;
     let kind = if clipped_i || clipped_j {
         PairKind::Clipped
     } else {

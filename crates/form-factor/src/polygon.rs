@@ -45,18 +45,18 @@ impl Poly {
             .fold(0.0, f64::max)
     }
 
-    pub fn in_frame(self, origin: DVec3, unit: f64) -> Poly {
-        let mut p = self;
-        for x in &mut p.v[..p.n] {
+    /// Moves the polygon into the frame with this origin and unit length.
+    pub fn move_to_frame(&mut self, origin: DVec3, unit: f64) {
+        for x in &mut self.v[..self.n] {
             *x = (*x - origin) / unit;
         }
-        p
     }
 
-    /// The part of the polygon in front of the plane through `point` with normal `normal`
-    /// (signed distance > `tol`), and whether anything was cut off. `None` when nothing of it
+    /// Cuts the polygon to its part in front of the plane through `point` with normal
+    /// `normal` (signed distance > `tol`; in place: pairs are screened by the million) and
+    /// says whether anything was cut off. `None` (the polygon unchanged) when nothing of it
     /// lies in front (behind or in the plane).
-    pub fn clip_front(&self, point: DVec3, normal: DVec3, tol: f64) -> Option<(Poly, bool)> {
+    pub fn clip_front(&mut self, point: DVec3, normal: DVec3, tol: f64) -> Option<bool> {
         let mut dist = [0.0f64; CAPACITY];
         let (mut front, mut back) = (0, 0);
         for (d, x) in dist.iter_mut().zip(&self.v[..self.n]) {
@@ -71,7 +71,7 @@ impl Poly {
             return None;
         }
         if back == 0 {
-            return Some((*self, false));
+            return Some(false);
         }
         // Sutherland–Hodgman against one plane; vertices within `tol` count as on it.
         let mut out = Poly {
@@ -88,7 +88,8 @@ impl Poly {
                 out.push(a + (b - a) * (da / (da - db)));
             }
         }
-        Some((out, true))
+        *self = out;
+        Some(true)
     }
 
     fn push(&mut self, x: DVec3) {

@@ -1,5 +1,5 @@
 //! Restarted GMRES (Saad & Schultz 1986) on eq. 7, `(I − diag(ρ_c) F) b_c = e_c`, through
-//! [`Operator::apply`] only.
+//! the operator's products only ([`Operator::apply`], [`Operator::apply_bands`]).
 //!
 //! Why GMRES: the Jacobi/Gauss–Seidel sweeps behind [`crate::solve_bounces`] contract by about
 //! the spectral radius of `ρF`, which is ρ in a closed scene (rows of F sum to 1), so ρ = 0.9999
@@ -14,6 +14,11 @@
 //! small least-squares problem. The implicit residual only decides when to leave a cycle early:
 //! convergence is always judged on the true residual `‖(I − ρF) b − e‖₂ / ‖e‖₂` recomputed from
 //! `b` exactly as [`crate::residual`] computes it, so a returned solution meets the tolerance.
+//!
+//! Lockstep: the solves of all bands (then all condition solves) advance together, one
+//! operator product each per step, fused into one [`Operator::apply_bands`] (a hierarchical
+//! operator's pass over its links costs little more for three bands than for one). Each
+//! solve's arithmetic is that of a solve on its own.
 //!
 //! Determinism: every dot product and norm is summed sequentially in index order, and the
 //! operator's `apply` is deterministic ([`crate::DenseMatrix`] is), so the result is
@@ -84,7 +89,7 @@ const CONDITION_TOLERANCE: f64 = 1e-8;
 /// the estimate falls back to the lower bound `‖A‖∞ ‖b‖∞ / ‖e‖∞`.
 ///
 /// `‖A‖∞` is taken as `max_i (1 + ρ_i Σ_j F_ij)`, exact for `F ≥ 0` with `F_ii = 0` (the
-/// form-factor invariants). Solves of different bands run in parallel; the result is
+/// form-factor invariants). Solves of different bands run in lockstep (module docs); the result is
 /// bit-identical for any thread count. [`Solution::factorizations`] is 0 and
 /// [`Solution::iterations`] holds each band's GMRES iterations.
 pub fn solve_iterative<O: Operator + ?Sized>(
@@ -103,12 +108,9 @@ pub fn solve_iterative<O: Operator + ?Sized>(
         row_sums(op)
     };
 
-    // One task per ρ group: its right-hand sides, then the condition solve, in order.
-    let solved: Vec<Result<GroupResult, SolveError>> = jobs
-        .par_iter()
-        .map(|(band, rhs_bands)| solve_group(op, rho, e, &s, *band, rhs_bands, options))
-        .collect();
-
+    // Every ρ group's right-hand sides, then every group's condition solve, each phase as
+    // GMRES lanes in lockstep: one fused `apply_bands` per step serves up to three solves.
+    let solved = solve_groups(op, rho, e, &s, &jobs, options);
     let mut b = vec![[0.0; BANDS]; n];
     let mut condition = [None; BANDS];
     let mut iterations = [0; BANDS];
@@ -160,74 +162,172 @@ struct GroupResult {
     condition: f64,
 }
 
-/// Solves band group `band`'s right-hand sides (first band of each entry of `rhs_bands`), then
-/// `A z = 1`, and runs the checks of the crate docs.
-fn solve_group<O: Operator + ?Sized>(
+/// Solves each band group's right-hand sides (first band of each entry of its `rhs_bands`),
+/// then its `A z = 1`, and runs the checks of the crate docs; one result per group, in order.
+/// The solves of one phase run as lanes of [`run_lanes`], so each lane's arithmetic is that
+/// of a solve of its own (bit for bit: `apply_bands` gives the bits of `apply`).
+fn solve_groups<O: Operator + ?Sized>(
     op: &O,
     rho: &[[f64; BANDS]],
     e: &[[f64; BANDS]],
     s: &[f64],
-    band: usize,
-    rhs_bands: &[Vec<usize>],
+    jobs: &[(usize, Vec<Vec<usize>>)],
     options: &IterativeOptions,
-) -> Result<GroupResult, SolveError> {
-    let system = System {
-        op,
-        rho: rho.iter().map(|r| r[band]).collect(),
-        // ‖A‖∞ = max_i (|1 − ρ_i F_ii| + ρ_i Σ_{j≠i} |F_ij|) = max_i (1 + ρ_i s_i) for F ≥ 0,
-        // F_ii = 0.
-        norm_a: rho
-            .iter()
-            .zip(s)
-            .map(|(r, s)| 1.0 + r[band] * s.abs())
-            .fold(0.0f64, f64::max),
-        eta: operator_error(rho, s, band, op.accuracy(), op.rows_bounded()),
-    };
-    let mut solutions = Vec::with_capacity(rhs_bands.len());
-    for bands in rhs_bands {
-        let c = bands[0];
-        let rhs: Vec<f64> = e.iter().map(|e| e[c]).collect();
-        match system.gmres(&rhs, options.tolerance, options) {
-            Ok(solved) => solutions.push(solved),
-            Err(Failure::Singular) => return Err(SolveError::Singular { band: c }),
-            Err(Failure::NotConverged {
-                iterations,
-                residual,
-            }) => {
-                return Err(SolveError::NotConverged {
-                    band: c,
-                    iterations,
-                    residual,
-                    tolerance: options.tolerance,
-                })
-            }
-        }
-    }
-
-    let z = if options.condition {
-        let ones = vec![1.0; e.len()];
-        match system.gmres(&ones, options.tolerance.max(CONDITION_TOLERANCE), options) {
-            Ok((z, _)) => Some(z),
-            Err(Failure::Singular) => return Err(SolveError::Singular { band }),
-            Err(Failure::NotConverged { .. }) => None,
-        }
-    } else {
-        None
-    };
-    let solved: Vec<(&[f64], f64)> = rhs_bands
+) -> Vec<Result<GroupResult, SolveError>> {
+    let systems: Vec<System> = jobs
         .iter()
-        .zip(&solutions)
-        .map(|(bands, (x, _))| {
-            let e_max = e.iter().fold(0.0f64, |m, e| m.max(e[bands[0]].abs()));
-            (x.as_slice(), e_max)
+        .map(|(band, _)| System {
+            rho: rho.iter().map(|r| r[*band]).collect(),
+            // ‖A‖∞ = max_i (|1 − ρ_i F_ii| + ρ_i Σ_{j≠i} |F_ij|) = max_i (1 + ρ_i s_i) for
+            // F ≥ 0, F_ii = 0.
+            norm_a: rho
+                .iter()
+                .zip(s)
+                .map(|(r, s)| 1.0 + r[*band] * s.abs())
+                .fold(0.0f64, f64::max),
+            eta: operator_error(rho, s, *band, op.accuracy(), op.rows_bounded()),
         })
         .collect();
-    let condition = checked_condition(band, system.norm_a, system.eta, z.as_deref(), &solved)?;
-    Ok(GroupResult {
-        solutions,
-        condition,
-    })
+    // Phase 1: every right-hand side of every group.
+    let mut lanes = Vec::new();
+    for (g, (_, rhs_bands)) in jobs.iter().enumerate() {
+        for bands in rhs_bands {
+            let rhs: Vec<f64> = e.iter().map(|e| e[bands[0]]).collect();
+            lanes.push(Lane::new(g, rhs, options.tolerance));
+        }
+    }
+    let solved = run_lanes(op, &systems, lanes, options);
+    // Phase 2: the condition solves of the groups whose solves all succeeded.
+    let mut per_group: Vec<Vec<Solved>> = jobs.iter().map(|_| Vec::new()).collect();
+    for (lane, result) in solved {
+        per_group[lane.group].push(result);
+    }
+    let failed = |g: usize| per_group[g].iter().any(|r| r.is_err());
+    let condition_lanes: Vec<Lane> = if options.condition {
+        (0..jobs.len())
+            .filter(|&g| !failed(g))
+            .map(|g| {
+                let tolerance = options.tolerance.max(CONDITION_TOLERANCE);
+                Lane::new(g, vec![1.0; e.len()], tolerance)
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let mut z: Vec<Option<Result<Vec<f64>, Failure>>> = jobs.iter().map(|_| None).collect();
+    for (lane, result) in run_lanes(op, &systems, condition_lanes, options) {
+        z[lane.group] = Some(result.map(|(z, _)| z));
+    }
+    jobs.iter()
+        .zip(per_group)
+        .zip(z)
+        .zip(&systems)
+        .map(|((((band, rhs_bands), results), z), system)| {
+            let mut solutions = Vec::with_capacity(results.len());
+            for (bands, result) in rhs_bands.iter().zip(results) {
+                let c = bands[0];
+                match result {
+                    Ok(solved) => solutions.push(solved),
+                    Err(Failure::Singular) => return Err(SolveError::Singular { band: c }),
+                    Err(Failure::NotConverged {
+                        iterations,
+                        residual,
+                    }) => {
+                        return Err(SolveError::NotConverged {
+                            band: c,
+                            iterations,
+                            residual,
+                            tolerance: options.tolerance,
+                        })
+                    }
+                }
+            }
+            let z = match z {
+                Some(Ok(z)) => Some(z),
+                Some(Err(Failure::Singular)) => return Err(SolveError::Singular { band: *band }),
+                Some(Err(Failure::NotConverged { .. })) | None => None,
+            };
+            let solved: Vec<(&[f64], f64)> = rhs_bands
+                .iter()
+                .zip(&solutions)
+                .map(|(bands, (x, _))| {
+                    let e_max = e.iter().fold(0.0f64, |m, e| m.max(e[bands[0]].abs()));
+                    (x.as_slice(), e_max)
+                })
+                .collect();
+            let condition =
+                checked_condition(*band, system.norm_a, system.eta, z.as_deref(), &solved)?;
+            Ok(GroupResult {
+                solutions,
+                condition,
+            })
+        })
+        .collect()
 }
+
+/// Runs GMRES lanes to the end in lockstep: each step, the vectors that the lanes still
+/// running need multiplied by F go through one `apply_bands` (one `apply` when a single lane
+/// is left), then every lane takes its product. Returns each lane with its result, in order.
+fn run_lanes<O: Operator + ?Sized>(
+    op: &O,
+    systems: &[System],
+    mut lanes: Vec<Lane>,
+    options: &IterativeOptions,
+) -> Vec<(Lane, Solved)> {
+    let n = op.n();
+    for lane in &mut lanes {
+        lane.start_cycle(options);
+    }
+    let mut x = vec![[0.0; BANDS]; n];
+    let mut y = vec![[0.0; BANDS]; n];
+    let mut single = vec![0.0; n];
+    loop {
+        let running: Vec<usize> = (0..lanes.len())
+            .filter(|&k| lanes[k].request().is_some())
+            .collect();
+        if running.is_empty() {
+            break;
+        }
+        for batch in running.chunks(BANDS) {
+            if let [k] = batch {
+                let v = lanes[*k].request().unwrap_or(&[]);
+                op.apply(v, &mut single);
+                let group = lanes[*k].group;
+                lanes[*k].receive(&systems[group], &single, options);
+                continue;
+            }
+            for (slot, &k) in batch.iter().enumerate() {
+                let v = lanes[k].request().unwrap_or(&[]);
+                for (xi, v) in x.iter_mut().zip(v) {
+                    xi[slot] = *v;
+                }
+            }
+            for xi in &mut x {
+                xi[batch.len()..].fill(0.0);
+            }
+            op.apply_bands(&x, &mut y);
+            let taken: Vec<(&mut Lane, usize)> = lanes
+                .iter_mut()
+                .enumerate()
+                .filter_map(|(k, lane)| batch.iter().position(|&b| b == k).map(|slot| (lane, slot)))
+                .collect();
+            taken.into_par_iter().for_each(|(lane, slot)| {
+                let fx: Vec<f64> = y.iter().map(|v| v[slot]).collect();
+                lane.receive(&systems[lane.group], &fx, options);
+            });
+        }
+    }
+    lanes
+        .into_iter()
+        .map(|mut lane| {
+            let result = lane.result.take().unwrap_or(Err(Failure::Singular));
+            (lane, result)
+        })
+        .collect()
+}
+
+/// What one GMRES solve returns: its solution and iterations, or why it stopped without one.
+type Solved = Result<(Vec<f64>, u32), Failure>;
 
 /// Why one GMRES solve stopped without a solution.
 enum Failure {
@@ -236,170 +336,227 @@ enum Failure {
 }
 
 /// `A = I − diag(ρ) F` for one band, with `‖A‖∞` and the visible operator error `η`.
-struct System<'a, O: ?Sized> {
-    op: &'a O,
+struct System {
     rho: Vec<f64>,
     norm_a: f64,
     eta: f64,
 }
 
-impl<O: Operator + ?Sized> System<'_, O> {
-    /// `y = A x = x − ρ ∘ (F x)`.
-    fn apply(&self, x: &[f64], y: &mut [f64]) {
-        self.op.apply(x, y);
-        for ((y, x), r) in y.iter_mut().zip(x).zip(&self.rho) {
-            *y = x - r * *y;
-        }
-    }
+/// Where a [`Lane`] is.
+enum Phase {
+    /// In a GMRES cycle: the next product is `F v_k` of the Krylov basis.
+    Arnoldi,
+    /// After a cycle: the next product is `F x`, for the true residual.
+    Residual,
+    /// Finished: [`Lane::result`] is set.
+    Done,
+}
 
-    /// `d = A x − rhs`, computed as `x_i − ρ_i (F x)_i − rhs_i` (the very arithmetic of
-    /// [`crate::residual`]); returns `‖d‖₂` and `‖A x‖∞`.
-    fn residual(&self, x: &[f64], rhs: &[f64], d: &mut [f64]) -> (f64, f64) {
-        self.op.apply(x, d);
-        let mut ax_max = 0.0f64;
-        for (((d, x), r), rhs) in d.iter_mut().zip(x).zip(&self.rho).zip(rhs) {
-            let ax = x - r * *d;
-            ax_max = ax_max.max(ax.abs());
-            *d = x - r * *d - rhs;
-        }
-        (norm2(d.iter().copied()), ax_max)
-    }
+/// One restarted GMRES(m) solve `A x = rhs` from `x = 0` (until `‖A x − rhs‖₂ ≤ tolerance
+/// ‖rhs‖₂`), written as a state machine that asks for one product `F v` at a time
+/// ([`Lane::request`], [`Lane::receive`]) so that several solves can share each operator
+/// pass. The arithmetic is the plain algorithm's, in the same order.
+struct Lane {
+    /// The band group whose system this lane solves.
+    group: usize,
+    rhs: Vec<f64>,
+    rhs_norm: f64,
+    target: f64,
+    x: Vec<f64>,
+    r: Vec<f64>,
+    beta: f64,
+    iterations: u32,
+    phase: Phase,
+    result: Option<Solved>,
+    // The current cycle: at most `m` Arnoldi steps.
+    m: usize,
+    k: usize,
+    basis: Vec<Vec<f64>>,
+    /// Column j of the rotated Hessenberg matrix: R's column j (length j + 1).
+    h: Vec<Vec<f64>>,
+    cs: Vec<f64>,
+    sn: Vec<f64>,
+    /// `Qᵀ β e₁`; `|g[k]|` is the implicit residual after k steps.
+    g: Vec<f64>,
+}
 
-    /// GMRES(m) from `x = 0` until `‖A x − rhs‖₂ ≤ tolerance ‖rhs‖₂`. Returns `x` and the
-    /// iterations used.
-    fn gmres(
-        &self,
-        rhs: &[f64],
-        tolerance: f64,
-        options: &IterativeOptions,
-    ) -> Result<(Vec<f64>, u32), Failure> {
+impl Lane {
+    fn new(group: usize, rhs: Vec<f64>, tolerance: f64) -> Lane {
         let n = rhs.len();
         let rhs_norm = norm2(rhs.iter().copied());
-        let mut x = vec![0.0; n];
-        if rhs_norm == 0.0 {
-            return Ok((x, 0));
-        }
-        let target = tolerance * rhs_norm;
-        let restart = options.restart as usize;
-        // r = rhs − A x = rhs at x = 0.
-        let mut r = rhs.to_vec();
-        let mut beta = rhs_norm;
-        let mut iterations = 0u32;
-        let mut d = vec![0.0; n];
-        loop {
-            if beta <= target {
-                return Ok((x, iterations));
-            }
-            if iterations >= options.max_iterations {
-                return Err(Failure::NotConverged {
-                    iterations,
-                    residual: beta / rhs_norm,
-                });
-            }
-            let m = restart.min((options.max_iterations - iterations) as usize);
-            let (y, basis, used) = self.arnoldi(&r, beta, m, target)?;
-            iterations += used as u32;
-            // x += V y.
-            for (yj, v) in y.iter().zip(&basis) {
-                for (x, v) in x.iter_mut().zip(v) {
-                    *x += yj * v;
-                }
-            }
-            // The true residual, never the implicit one.
-            let (norm, ax_max) = self.residual(&x, rhs, &mut d);
-            if !norm.is_finite() || !x.iter().all(|v| v.is_finite()) {
-                return Err(Failure::Singular);
-            }
-            // cond_∞ ≥ ‖A‖∞ ‖x‖∞ / ‖A x‖∞; with η that bounds the attainable relative error.
-            let x_max = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            if ax_max > 0.0 && meaningless(self.norm_a * x_max / ax_max, self.eta) {
-                return Err(Failure::Singular);
-            }
-            beta = norm;
-            for (r, d) in r.iter_mut().zip(&d) {
-                *r = -d;
-            }
+        Lane {
+            group,
+            rhs_norm,
+            target: tolerance * rhs_norm,
+            x: vec![0.0; n],
+            // r = rhs − A x = rhs at x = 0.
+            r: rhs.clone(),
+            rhs,
+            beta: rhs_norm,
+            iterations: 0,
+            phase: Phase::Residual,
+            result: None,
+            m: 0,
+            k: 0,
+            basis: Vec::new(),
+            h: Vec::new(),
+            cs: Vec::new(),
+            sn: Vec::new(),
+            g: Vec::new(),
         }
     }
 
-    /// One GMRES cycle of at most `m` Arnoldi steps from `r` (`‖r‖₂ = beta`): returns the
-    /// least-squares coefficients `y`, the Krylov basis `V` they multiply, and the steps taken.
-    /// Leaves early when the implicit residual reaches `target` or the Krylov space is
-    /// invariant (breakdown).
-    #[allow(clippy::type_complexity)]
-    fn arnoldi(
-        &self,
-        r: &[f64],
-        beta: f64,
-        m: usize,
-        target: f64,
-    ) -> Result<(Vec<f64>, Vec<Vec<f64>>, usize), Failure> {
-        let n = r.len();
-        let mut basis: Vec<Vec<f64>> = Vec::with_capacity(m + 1);
-        basis.push(r.iter().map(|v| v / beta).collect());
-        // Column j of the rotated Hessenberg matrix: R's column j (length j + 1).
-        let mut h: Vec<Vec<f64>> = Vec::with_capacity(m);
-        let (mut cs, mut sn): (Vec<f64>, Vec<f64>) = (Vec::with_capacity(m), Vec::with_capacity(m));
-        // g = Qᵀ β e₁; |g[k]| is the implicit residual after k steps.
-        let mut g = vec![0.0; m + 1];
-        g[0] = beta;
-        let mut k = 0;
-        while k < m {
-            let mut w = vec![0.0; n];
-            self.apply(&basis[k], &mut w);
-            let w_norm = norm2(w.iter().copied());
-            let mut col = vec![0.0; k + 2];
-            // Modified Gram–Schmidt, twice.
-            for _ in 0..2 {
-                for (i, v) in basis.iter().enumerate() {
-                    let hij = dot(v, &w);
-                    for (w, v) in w.iter_mut().zip(v) {
-                        *w -= hij * v;
-                    }
-                    col[i] += hij;
+    fn finish(&mut self, result: Result<(), Failure>) {
+        let x = std::mem::take(&mut self.x);
+        self.result = Some(result.map(|()| (x, self.iterations)));
+        self.phase = Phase::Done;
+        self.basis = Vec::new();
+    }
+
+    /// The top of the restart loop: done, out of budget, or a new cycle from `r`.
+    fn start_cycle(&mut self, options: &IterativeOptions) {
+        if self.rhs_norm == 0.0 || self.beta <= self.target {
+            return self.finish(Ok(()));
+        }
+        if self.iterations >= options.max_iterations {
+            let failure = Failure::NotConverged {
+                iterations: self.iterations,
+                residual: self.beta / self.rhs_norm,
+            };
+            self.phase = Phase::Done;
+            self.result = Some(Err(failure));
+            return;
+        }
+        self.m =
+            (options.restart as usize).min((options.max_iterations - self.iterations) as usize);
+        self.basis = Vec::with_capacity(self.m + 1);
+        let beta = self.beta;
+        self.basis.push(self.r.iter().map(|v| v / beta).collect());
+        self.h = Vec::with_capacity(self.m);
+        self.cs = Vec::with_capacity(self.m);
+        self.sn = Vec::with_capacity(self.m);
+        self.g = vec![0.0; self.m + 1];
+        self.g[0] = beta;
+        self.k = 0;
+        self.phase = Phase::Arnoldi;
+    }
+
+    /// The vector whose product with F the lane needs next; `None` once it is done.
+    fn request(&self) -> Option<&[f64]> {
+        match self.phase {
+            Phase::Arnoldi => Some(&self.basis[self.k]),
+            Phase::Residual => Some(&self.x),
+            Phase::Done => None,
+        }
+    }
+
+    /// Takes `fx = F v` for the vector of [`Lane::request`] and moves on.
+    fn receive(&mut self, system: &System, fx: &[f64], options: &IterativeOptions) {
+        match self.phase {
+            Phase::Arnoldi => self.arnoldi_step(system, fx),
+            Phase::Residual => self.residual_step(system, fx, options),
+            Phase::Done => {}
+        }
+    }
+
+    /// One Arnoldi step with `w = A v_k = v_k − ρ ∘ (F v_k)`; at the cycle's end (m steps,
+    /// the implicit residual at the target, or breakdown) x takes the cycle's correction and
+    /// the lane asks for the true residual.
+    fn arnoldi_step(&mut self, system: &System, fx: &[f64]) {
+        let k = self.k;
+        let mut w: Vec<f64> = fx.to_vec();
+        for ((w, v), r) in w.iter_mut().zip(&self.basis[k]).zip(&system.rho) {
+            *w = v - r * *w;
+        }
+        let w_norm = norm2(w.iter().copied());
+        let mut col = vec![0.0; k + 2];
+        // Modified Gram–Schmidt, twice.
+        for _ in 0..2 {
+            for (i, v) in self.basis.iter().enumerate() {
+                let hij = dot(v, &w);
+                for (w, v) in w.iter_mut().zip(v) {
+                    *w -= hij * v;
                 }
+                col[i] += hij;
             }
-            let h_next = norm2(w.iter().copied());
-            col[k + 1] = h_next;
-            // Earlier rotations, then the one that zeroes col[k + 1].
-            for i in 0..k {
-                let t = cs[i] * col[i] + sn[i] * col[i + 1];
-                col[i + 1] = -sn[i] * col[i] + cs[i] * col[i + 1];
-                col[i] = t;
-            }
-            let (c, s) = givens(col[k], col[k + 1]);
-            col[k] = c * col[k] + s * col[k + 1];
-            col.truncate(k + 1);
-            g[k + 1] = -s * g[k];
-            g[k] *= c;
-            h.push(col);
-            cs.push(c);
-            sn.push(s);
-            k += 1;
-            // Breakdown (A maps the Krylov space into itself: the cycle's answer is exact), or
-            // NaN from the operator (caught as non-finite by the caller).
-            if h_next.is_nan() || h_next <= f64::EPSILON * w_norm || g[k].abs() <= target {
-                break;
-            }
-            if k < m {
-                basis.push(w.iter().map(|w| w / h_next).collect());
-            }
+        }
+        let h_next = norm2(w.iter().copied());
+        col[k + 1] = h_next;
+        // Earlier rotations, then the one that zeroes col[k + 1].
+        for i in 0..k {
+            let t = self.cs[i] * col[i] + self.sn[i] * col[i + 1];
+            col[i + 1] = -self.sn[i] * col[i] + self.cs[i] * col[i + 1];
+            col[i] = t;
+        }
+        let (c, s) = givens(col[k], col[k + 1]);
+        col[k] = c * col[k] + s * col[k + 1];
+        col.truncate(k + 1);
+        self.g[k + 1] = -s * self.g[k];
+        self.g[k] *= c;
+        self.h.push(col);
+        self.cs.push(c);
+        self.sn.push(s);
+        self.k = k + 1;
+        let k = self.k;
+        // Breakdown (A maps the Krylov space into itself: the cycle's answer is exact), or
+        // NaN from the operator (caught as non-finite below).
+        let end = h_next.is_nan()
+            || h_next <= f64::EPSILON * w_norm
+            || self.g[k].abs() <= self.target
+            || k >= self.m;
+        if !end {
+            self.basis.push(w.iter().map(|w| w / h_next).collect());
+            return;
         }
         // Back substitution R y = g.
         let mut y = vec![0.0; k];
         for i in (0..k).rev() {
-            let mut acc = g[i];
+            let mut acc = self.g[i];
             for (j, yj) in y.iter().enumerate().skip(i + 1) {
-                acc -= h[j][i] * yj;
+                acc -= self.h[j][i] * yj;
             }
-            if h[i][i] == 0.0 {
+            if self.h[i][i] == 0.0 {
                 // A singular on the Krylov space: no least-squares solution improves x.
-                return Err(Failure::Singular);
+                return self.finish(Err(Failure::Singular));
             }
-            y[i] = acc / h[i][i];
+            y[i] = acc / self.h[i][i];
         }
-        basis.truncate(k);
-        Ok((y, basis, k))
+        self.iterations += k as u32;
+        // x += V y.
+        for (yj, v) in y.iter().zip(&self.basis) {
+            for (x, v) in self.x.iter_mut().zip(v) {
+                *x += yj * v;
+            }
+        }
+        self.basis = Vec::new();
+        self.phase = Phase::Residual;
+    }
+
+    /// The true residual `d = A x − rhs`, computed as `x_i − ρ_i (F x)_i − rhs_i` (the very
+    /// arithmetic of [`crate::residual`]), never the implicit one; then the restart loop's
+    /// checks.
+    fn residual_step(&mut self, system: &System, fx: &[f64], options: &IterativeOptions) {
+        let mut d: Vec<f64> = fx.to_vec();
+        let mut ax_max = 0.0f64;
+        for (((d, x), r), rhs) in d.iter_mut().zip(&self.x).zip(&system.rho).zip(&self.rhs) {
+            let ax = x - r * *d;
+            ax_max = ax_max.max(ax.abs());
+            *d = x - r * *d - rhs;
+        }
+        let norm = norm2(d.iter().copied());
+        if !norm.is_finite() || !self.x.iter().all(|v| v.is_finite()) {
+            return self.finish(Err(Failure::Singular));
+        }
+        // cond_∞ ≥ ‖A‖∞ ‖x‖∞ / ‖A x‖∞; with η that bounds the attainable relative error.
+        let x_max = self.x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if ax_max > 0.0 && meaningless(system.norm_a * x_max / ax_max, system.eta) {
+            return self.finish(Err(Failure::Singular));
+        }
+        self.beta = norm;
+        for (r, d) in self.r.iter_mut().zip(&d) {
+            *r = -d;
+        }
+        self.start_cycle(options);
     }
 }
 

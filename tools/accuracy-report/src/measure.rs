@@ -640,7 +640,7 @@ mod tests {
             dense_error.rms, dense_error.max
         );
         let mut previous = f64::INFINITY;
-        for t in [1e-3, 1e-4, 5e-5, 3e-5, 2.5e-5, 2e-5] {
+        for t in [1e-3, 1e-4, 5e-5, 3e-5, 2.5e-5, 2.2e-5, 2e-5] {
             let (h, s) = bake(bake_core::TransportKind::Hierarchical, Some(t));
             let e = element_errors(&Field::new(&h.mesh, &h.solution.b), &reference, &cube);
             println!(
