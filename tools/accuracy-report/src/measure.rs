@@ -581,10 +581,6 @@ pub fn scanline_errors(values: &[[f64; 3]], reference: &[[f64; 3]]) -> Errors {
 mod tests {
     use super::*;
 
-    /// The cube at `--subdiv 28`, dense and hierarchical (each link tolerance), against the
-    /// continuous solution (the exact closed-form solve at 48 × 48 per wall, averaged over each
-    /// element). Prints the errors and times; asserts only that the hierarchical error falls as
-    /// the link tolerance does (speed is a benchmark, not a test).
     /// User + system CPU seconds of this process so far (Linux `/proc/self/stat`, 100 ticks
     /// per second), to compare bakes on a machine that other work shares.
     fn cpu_seconds() -> f64 {
@@ -605,6 +601,11 @@ mod tests {
         (ticks(11) + ticks(12)) / 100.0
     }
 
+    /// The cube at `--subdiv 28`, dense and hierarchical (each link tolerance), against the
+    /// continuous solution (the exact closed-form solve at 48 × 48 per wall, averaged over each
+    /// element). Prints the errors and wall and CPU times; asserts that the hierarchical error
+    /// falls as the link tolerance does and is within 1.2× dense's at the last one (issue 11;
+    /// speed is a benchmark, not a test).
     #[test]
     #[ignore = "a 13 824-element closed-form reference: minutes in a release build"]
     fn cube_28_hierarchical_and_dense_against_the_continuous_solution() {
@@ -640,7 +641,7 @@ mod tests {
             dense_error.rms, dense_error.max
         );
         let mut previous = f64::INFINITY;
-        for t in [1e-3, 1e-4, 5e-5, 3e-5, 2.5e-5, 2.2e-5, 2e-5] {
+        for t in [1e-3, 1e-4, 5e-5, 3e-5, 2.2e-5] {
             let (h, s) = bake(bake_core::TransportKind::Hierarchical, Some(t));
             let e = element_errors(&Field::new(&h.mesh, &h.solution.b), &reference, &cube);
             println!(
@@ -654,6 +655,13 @@ mod tests {
             assert!(e.rms < previous);
             previous = e.rms;
         }
+        // Issue 11: the tolerance the README's speed comparison uses is within 1.2× of the
+        // dense transport's error against the continuous solution.
+        assert!(
+            previous <= 1.2 * dense_error.rms,
+            "{previous} vs dense {}",
+            dense_error.rms
+        );
     }
 
     /// Issue 14: the per-element error estimate (`bake_core::error`) on the cube at
