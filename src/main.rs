@@ -79,9 +79,9 @@ pub struct Cli {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub max_iterations: Option<u32>,
 
-    /// Vertex values: `smooth` averages neighbouring elements (area-weighted, the paper's
-    /// linear smoothing, Figure 8); `flat` exports every element with its own constant value
-    /// (Figure 6).
+    /// Vertex values and lightmap texels: `smooth` averages neighbouring elements
+    /// (area-weighted, the paper's linear smoothing, Figure 8); `flat` exports every element
+    /// with its own constant value (Figure 6), and every lightmap texel with its element's H.
     #[arg(long, value_enum, default_value_t = Shading::Smooth)]
     pub shading: Shading,
     /// Multiply radiosity by X before clamping to [0, 1] for COLOR_0 (the unclamped value

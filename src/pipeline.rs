@@ -132,6 +132,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
                 .lightmap_texel
                 .unwrap_or_else(|| lightmap::default_texel_size(&scene.polygons)),
             max_size: cli.lightmap_max,
+            shading: lightmap_shading(cli.shading),
         };
         lightmap::plan_uv(
             &scene.polygons,
@@ -200,6 +201,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
                 .lightmap_texel
                 .unwrap_or_else(|| lightmap::default_texel_size(&scene.polygons)),
             max_size: cli.lightmap_max,
+            shading: lightmap_shading(cli.shading),
         };
         bake_core::Progress::start(&bars, "lightmap", 0);
         let built = lightmap::build_with(
@@ -546,6 +548,14 @@ fn options_json(
         map.extend(extra);
     }
     options
+}
+
+/// `--shading` for the lightmap's texels (each element's own H with `flat`).
+fn lightmap_shading(shading: Shading) -> lightmap::Shading {
+    match shading {
+        Shading::Smooth => lightmap::Shading::Smooth,
+        Shading::Flat => lightmap::Shading::Flat,
+    }
 }
 
 /// The report's `options.lightmap_layout`: per primitive instance, whether the input's

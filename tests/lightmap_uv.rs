@@ -404,6 +404,7 @@ fn blender_lightmap_pack_is_kept_as_authored() {
     let options = lightmap::Options {
         texel_size: lightmap::default_texel_size(&scene.polygons),
         max_size: lightmap::DEFAULT_MAX_SIZE,
+        shading: lightmap::Shading::Smooth,
     };
     let authored = lightmap::AuthoredUv::from_scene(&scene);
     let map = lightmap::build_with(

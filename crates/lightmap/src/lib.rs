@@ -11,13 +11,16 @@
 //! intensity units (those of emission e and radiosity b), so that `b = e + ρ H`. Engines
 //! multiply a lightmap by their own albedo; a lightmap of b would apply ρ twice.
 //!
-//! How: per-element H is smoothed to the element grid's vertices (`ElementMesh::smooth`, the
-//! vertex bake's smoothing); vertices on edges shared with coplanar polygons of the same
-//! material are welded (averaged) so those charts agree along the edge; each texel whose
-//! centre maps to a surface point through the chart gets the grid's interpolant there
-//! (bilinear on a quad's elements, linear on a triangle's). Texels around a chart copy their
-//! nearest chart texel, far enough that bilinear filtering at full resolution and at the first
-//! mip level reads only the chart's own values.
+//! How ([`Shading::Smooth`], the default): per-element H is smoothed to the element grid's
+//! vertices (`ElementMesh::smooth`, the vertex bake's smoothing); vertices on edges shared with
+//! coplanar polygons of the same material are welded (averaged) so those charts agree along
+//! the edge; each texel whose centre maps to a surface point through the chart gets the grid's
+//! interpolant there (bilinear on a quad's elements, linear on a triangle's). With
+//! [`Shading::Flat`] (`--shading flat`) each such texel holds the H of the element its centre
+//! maps into instead, so bilinear sampling at an element's centre reads exactly that element's
+//! H once elements span at least 2 texels each way (steps at element edges, as the flat vertex
+//! bake shows). Texels around a chart copy their nearest chart texel, far enough that bilinear
+//! filtering at full resolution and at the first mip level reads only the chart's own values.
 //!
 //! Layout rules ([`chart`]): a quad becomes a rectangle with its true aspect, a triangle a right
 //! triangle of its area so two share a rectangle; every chart has [`PADDING`] texels of its own
@@ -72,6 +75,40 @@ pub struct Options {
     pub texel_size: f64,
     /// Largest atlas side, in texels (≥ 16).
     pub max_size: u32,
+    /// How texels are made from the per-element values (`--shading`).
+    pub shading: Shading,
+}
+
+/// How texels are reconstructed from the per-element values (`--shading`, as for the
+/// vertex bake).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Shading {
+    /// The smoothed, welded field: the vertex bake's smoothing (`ElementMesh::smooth`),
+    /// interpolated over the element grid, so the light has no steps at element edges.
+    #[default]
+    Smooth,
+    /// Each texel holds the value of the element its centre maps to (outside the polygon, in
+    /// the footprint's rim: the nearest element's), gutters dilated as for `Smooth`. Bilinear
+    /// sampling at a point at least one texel inside its element reads exactly that
+    /// element's H (an element centre, once elements span ≥ 2 texels each way).
+    Flat,
+}
+
+/// Per-element values and each polygon's first element, for [`Shading::Flat`].
+#[derive(Clone, Debug, PartialEq)]
+struct Flat {
+    elements: Vec<[f64; 3]>,
+    first: Vec<u32>,
+}
+
+fn source<'a>(flat: &'a Option<Flat>, vertex_values: &'a [[f64; 3]]) -> raster::Source<'a> {
+    match flat {
+        Some(f) => raster::Source::Flat {
+            elements: &f.elements,
+            first: &f.first,
+        },
+        None => raster::Source::Smooth(vertex_values),
+    }
 }
 
 /// What one texel of the atlas is.
@@ -148,7 +185,10 @@ pub struct Lightmap {
     pub uv_decisions: Vec<UvDecision>,
     /// Things the user should know (authored padding under [`MIN_PADDING`] texels).
     pub warnings: Vec<String>,
+    /// How the texels were made.
+    pub shading: Shading,
     fields: Vec<Field>,
+    flat: Option<Flat>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -249,6 +289,10 @@ pub fn build_with(
     let fields = fields(polygons, mesh)?;
     let (vertex_values, welded_vertices) =
         smooth_and_weld(polygons, mesh, &fields, element_irradiance);
+    let flat = (options.shading == Shading::Flat).then(|| Flat {
+        elements: element_irradiance.to_vec(),
+        first: mesh.patches.iter().map(|p| p.elements.start).collect(),
+    });
 
     let plan = authored::plan(
         polygons,
@@ -262,6 +306,7 @@ pub fn build_with(
             kept,
             options,
             fields,
+            flat,
             vertex_values,
             welded_vertices,
             plan.decisions,
@@ -282,6 +327,7 @@ pub fn build_with(
             layout,
             options,
             fields,
+            flat,
             vertex_values,
             welded_vertices,
             plan.decisions,
@@ -294,7 +340,7 @@ pub fn build_with(
     let mut charts: Vec<Option<Chart>> = vec![None; polygons.len()];
     let filled: Vec<raster::RegionTexels> = regions
         .par_iter()
-        .map(|region| raster::region_texels(region, &fields, &vertex_values))
+        .map(|region| raster::region_texels(region, &fields, source(&flat, &vertex_values)))
         .collect();
     for ((region, &(rx, ry)), block) in regions.iter().zip(&packing.positions).zip(&filled) {
         let rect = Rect {
@@ -361,7 +407,9 @@ pub fn build_with(
         stats,
         uv_decisions: plan.decisions,
         warnings: Vec::new(),
+        shading: options.shading,
         fields,
+        flat,
     })
 }
 
@@ -371,6 +419,7 @@ fn kept_lightmap(
     kept: authored::Kept,
     options: &Options,
     fields: Vec<Field>,
+    flat: Option<Flat>,
     vertex_values: Vec<[f64; 3]>,
     welded_vertices: usize,
     uv_decisions: Vec<UvDecision>,
@@ -418,6 +467,7 @@ fn kept_lightmap(
         },
         options,
         fields,
+        flat,
         vertex_values,
         welded_vertices,
         uv_decisions,
@@ -440,11 +490,18 @@ fn assemble(
     a: Assembly,
     options: &Options,
     fields: Vec<Field>,
+    flat: Option<Flat>,
     vertex_values: Vec<[f64; 3]>,
     welded_vertices: usize,
     uv_decisions: Vec<UvDecision>,
 ) -> Lightmap {
-    let block = raster::atlas_texels(a.width, a.height, &a.charts, &fields, &vertex_values);
+    let block = raster::atlas_texels(
+        a.width,
+        a.height,
+        &a.charts,
+        &fields,
+        source(&flat, &vertex_values),
+    );
     let n = a.width as usize;
     let mut stats = Stats {
         welded_vertices,
@@ -487,7 +544,9 @@ fn assemble(
         stats,
         uv_decisions,
         warnings: a.warnings,
+        shading: options.shading,
         fields,
+        flat,
     }
 }
 
@@ -675,11 +734,12 @@ impl Lightmap {
         sample_bilinear(&self.texels, self.width, self.height, uv)
     }
 
-    /// The smoothed, welded irradiance at world point `point` of polygon `polygon`: what the
-    /// texels were reconstructed from.
+    /// The irradiance at world point `point` of polygon `polygon` that the texels were
+    /// reconstructed from: the smoothed, welded field, or for [`Shading::Flat`] the H of the
+    /// element there.
     pub fn irradiance_at(&self, polygon: usize, point: DVec3) -> [f64; 3] {
         let field = &self.fields[polygon];
-        field.value_at(field.to_plane(point), &self.vertex_values)
+        source(&self.flat, &self.vertex_values).at(polygon, field, field.to_plane(point))
     }
 }
 
@@ -834,6 +894,7 @@ mod tests {
         let options = Options {
             texel_size: 0.02,
             max_size: 1024,
+            shading: Shading::Smooth,
         };
         let lightmap = build(&polygons, &mesh, &values, &options).expect("build");
         assert_eq!(lightmap.charts[0].region, lightmap.charts[1].region);

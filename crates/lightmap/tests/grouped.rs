@@ -135,6 +135,7 @@ fn grouped_charts_on_a_hundred_thousand_triangles() {
     let options = lightmap::Options {
         texel_size: 0.04,
         max_size: lightmap::DEFAULT_MAX_SIZE,
+        shading: lightmap::Shading::Smooth,
     };
     let started = Instant::now();
     let map = lightmap::build(&polygons, &mesh, &h, &options).expect("build");
@@ -323,6 +324,7 @@ fn a_generated_layout_is_a_valid_authored_one() {
     let options = lightmap::Options {
         texel_size: 0.04,
         max_size: lightmap::DEFAULT_MAX_SIZE,
+        shading: lightmap::Shading::Smooth,
     };
     let generated = lightmap::build(&polygons, &mesh, &h, &options).expect("build");
     let authored = lightmap::AuthoredUv {
