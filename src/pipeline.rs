@@ -413,8 +413,14 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             Exposure::Value(_) => {}
         }
         if let Some(built) = &lightmap {
-            let layout = if built.uv_decisions.iter().all(|d| d.kept) {
+            let own = built.uv_decisions.iter().filter(|d| d.own_region).count();
+            let layout = if built.uv_decisions.iter().all(|d| d.kept && !d.own_region) {
                 "the input's TEXCOORD_1".to_string()
+            } else if own > 0 {
+                format!(
+                    "{} charts + {own} primitives' own TEXCOORD_1",
+                    built.stats.charts
+                )
             } else {
                 format!("{} charts", built.stats.charts)
             };
@@ -572,6 +578,7 @@ fn lightmap_layout(built: &lightmap::Lightmap) -> serde_json::Value {
                 "polygons": d.polygons,
                 "uv": if d.kept { "kept" } else { "generated" },
                 "reason": d.reason,
+                "own_region": d.own_region,
             })
         })
         .collect();

@@ -94,6 +94,24 @@ fn blender_textured_room_bakes_and_keeps_its_textures() {
         report.as_os_str(),
     ])
     .success();
+    // Blender's per-object second UV maps each fill [0, 1]: the floor and the walls keep
+    // theirs in atlas regions of their own (`--lightmap-uv auto`), the table (no second UV
+    // map) gets generated charts.
+    let baked: Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).expect("read the report"))
+            .expect("JSON");
+    let layout = baked["options"]["lightmap_layout"]
+        .as_array()
+        .expect("the lightmap layout");
+    let own = layout.iter().filter(|d| d["own_region"] == true).count();
+    assert_eq!(own, 2, "{layout:?}");
+    assert!(
+        layout
+            .iter()
+            .filter(|d| d["own_region"] != true)
+            .all(|d| d["uv"] == "generated"),
+        "{layout:?}"
+    );
     let side = dir.path().join("out.lightmap.gltf");
     for path in [&out, &side] {
         let mut names = textured_materials(path);

@@ -11,6 +11,10 @@
 //!   face's two sides), UVs outside [0, 1] and a material that samples TEXCOORD_1, each
 //!   naming the primitive and the reason, before the bake; `auto` generates charts for them
 //!   and says why; islands closer than 2 texels warn.
+//! - `auto` per primitive: two primitives whose TEXCOORD_1 overlap each other (not
+//!   themselves) each keep theirs in an atlas region of their own (output = input under one
+//!   scale and a shift, checked at every vertex), a third that overlaps itself is generated;
+//!   flat texels at element centroids are the elements' H; validator clean.
 //! - Grouped charts through the binary: a flat floor of 4 232 triangles under a point light
 //!   (one grouped chart), validator clean, and each triangle centroid away from the edge,
 //!   sampled from the written EXR through the written TEXCOORD_1, reads the closed form
@@ -393,14 +397,7 @@ fn blender_lightmap_pack_is_kept_as_authored() {
     }
     // The texels under the kept layout hold the irradiance: element centroids, looked up
     // through TEXCOORD_1 and sampled, read the smoothed H within 1% (in-process bake).
-    let scene = importer::load(&room).expect("load");
-    let request = bake_core::Request {
-        irradiance: true,
-        ..bake_core::Request::default()
-    };
-    let settings = bake_core::Settings::resolve(&request, &scene.polygons).expect("settings");
-    let baked = bake_core::run(&scene, &settings, &bake_core::Silent).expect("bake");
-    let h = baked.irradiance.expect("irradiance");
+    let (scene, baked, h) = bake_in_process(&room);
     let options = lightmap::Options {
         texel_size: lightmap::default_texel_size(&scene.polygons),
         max_size: lightmap::DEFAULT_MAX_SIZE,
@@ -448,6 +445,19 @@ fn blender_lightmap_pack_is_kept_as_authored() {
     }
     assert!(checked * 2 > baked.mesh.elements.len(), "{checked} checked");
     assert!(worst < 0.01, "worst {worst}");
+}
+
+/// The CLI's default bake of `path` in-process, with H.
+fn bake_in_process(path: &Path) -> (importer::Scene, bake_core::Bake, Vec<[f64; 3]>) {
+    let scene = importer::load(path).expect("load");
+    let request = bake_core::Request {
+        irradiance: true,
+        ..bake_core::Request::default()
+    };
+    let settings = bake_core::Settings::resolve(&request, &scene.polygons).expect("settings");
+    let mut baked = bake_core::run(&scene, &settings, &bake_core::Silent).expect("bake");
+    let h = baked.irradiance.take().expect("irradiance");
+    (scene, baked, h)
 }
 
 /// TEXCOORD_1 at `point` of `polygon`, over the fan triangle (v0 vk vk+1) holding it.
@@ -579,4 +589,208 @@ fn grouped_charts_carry_a_point_lights_closed_form_through_the_files() {
     assert!(checked > 3000, "{checked}");
     println!("{checked} triangle centroids: worst relative error {worst:.2e}");
     assert!(worst < 0.01, "worst {worst}");
+}
+
+// ---- auto, per primitive ----
+
+/// A TEXCOORD_1 square: corner and side.
+type Square = ([f32; 2], f32);
+
+/// One node per entry, 2 apart along x, each its own mesh from [`two_quads`] with TEXCOORD_1
+/// squares (floor, ceiling); node names "p0", "p1", …
+fn primitives_scene(squares: &[(Square, Square)]) -> Value {
+    let mut doc = json!({
+        "asset": { "version": "2.0" }, "scene": 0, "scenes": [{ "nodes": [] }],
+        "nodes": [], "meshes": [], "materials": [], "accessors": [], "bufferViews": [],
+        "buffers": []
+    });
+    let push = |doc: &mut Value, key: &str, v: Value| {
+        let list = doc[key].as_array_mut().expect("a list");
+        list.push(v);
+        list.len() - 1
+    };
+    for (k, &(floor, ceiling)) in squares.iter().enumerate() {
+        let one = two_quads(floor, ceiling, json!({}));
+        let buffer = push(&mut doc, "buffers", one["buffers"][0].clone());
+        let views = doc["bufferViews"].as_array().map_or(0, Vec::len);
+        for mut view in one["bufferViews"].as_array().cloned().unwrap_or_default() {
+            view["buffer"] = json!(buffer);
+            push(&mut doc, "bufferViews", view);
+        }
+        let accessors = doc["accessors"].as_array().map_or(0, Vec::len);
+        for mut a in one["accessors"].as_array().cloned().unwrap_or_default() {
+            a["bufferView"] = json!(a["bufferView"].as_u64().unwrap_or(0) as usize + views);
+            push(&mut doc, "accessors", a);
+        }
+        let material = push(&mut doc, "materials", one["materials"][0].clone());
+        let mut primitive = one["meshes"][0]["primitives"][0].clone();
+        for set in ["POSITION", "TEXCOORD_0", "TEXCOORD_1"] {
+            let a = primitive["attributes"][set].as_u64().unwrap_or(0) as usize;
+            primitive["attributes"][set] = json!(a + accessors);
+        }
+        primitive["material"] = json!(material);
+        let mesh = push(
+            &mut doc,
+            "meshes",
+            json!({ "name": format!("p{k}"), "primitives": [primitive] }),
+        );
+        let node = push(
+            &mut doc,
+            "nodes",
+            json!({ "name": format!("p{k}"), "mesh": mesh, "translation": [2.0 * k as f64, 0.0, 0.0] }),
+        );
+        doc["scenes"][0]["nodes"]
+            .as_array_mut()
+            .expect("nodes")
+            .push(json!(node));
+    }
+    doc
+}
+
+/// `auto` decides per primitive: two primitives whose TEXCOORD_1 each fill the same part of
+/// [0, 1] (as Blender's per-object UV maps do) overlap each other, so the whole layout cannot
+/// be kept, but each keeps its own in its own atlas region — its output TEXCOORD_1 is the
+/// input's under one scale (the same in texels along u and v) and a shift; a third primitive
+/// whose TEXCOORD_1 overlaps itself gets generated charts. `keep` still refuses the scene. The
+/// texels (`--shading flat`) at element centroids, sampled through the written TEXCOORD_1,
+/// are the elements' H; the output is validator clean.
+#[test]
+fn auto_keeps_each_usable_primitive_in_its_own_region() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let d = dir.path();
+    let good = (([0.0625, 0.0625], 0.375), ([0.5625, 0.0625], 0.375));
+    let folded = (([0.0625, 0.0625], 0.375), ([0.25, 0.25], 0.375));
+    let doc = primitives_scene(&[good, good, folded]);
+    let (run, _) = bake_uv(d, "keep", &doc, "keep");
+    assert_eq!(run.code, Some(1), "{run:#?}");
+    assert!(
+        run.stderr.contains("one atlas holds one layout"),
+        "{}",
+        run.stderr
+    );
+
+    let input = d.join("mixed.gltf");
+    write_json(&input, &doc);
+    let out = d.join("mixed-out.gltf");
+    let report = d.join("mixed.json");
+    bake([
+        input.as_os_str(),
+        out.as_os_str(),
+        "--target".as_ref(),
+        "lightmap".as_ref(),
+        "--shading".as_ref(),
+        "flat".as_ref(),
+        "--report".as_ref(),
+        report.as_os_str(),
+    ])
+    .success();
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).expect("report")).expect("JSON");
+    let layout = &report["options"]["lightmap_layout"];
+    assert_eq!(layout.as_array().map(Vec::len), Some(3), "{layout}");
+    for k in 0..2 {
+        assert_eq!(layout[k]["uv"], "kept", "{layout}");
+        assert_eq!(layout[k]["own_region"], true, "{layout}");
+    }
+    assert_eq!(layout[2]["uv"], "generated", "{layout}");
+    assert!(
+        layout[2]["reason"]
+            .as_str()
+            .is_some_and(|r| r.contains("overlaps itself")),
+        "{layout}"
+    );
+
+    // Kept primitives: output = input × (a_u, a_v) + (b_u, b_v), with a_u W = a_v H (one
+    // scale in texels), fitted on the extremes and checked at every vertex.
+    let (inputs, outputs) = (triangles_by_node(&input, 1), triangles_by_node(&out, 1));
+    let (document, _, images) = gltf::import(&out).expect("re-read");
+    let png = document
+        .images()
+        .next()
+        .expect("the lightmap image")
+        .index();
+    let (w, h) = (f64::from(images[png].width), f64::from(images[png].height));
+    let mut boxes = Vec::new();
+    for name in ["p0", "p1"] {
+        let mut pairs = Vec::new();
+        for (p, t) in &outputs[name] {
+            for k in 0..3 {
+                let want = uv_at(&inputs[name], p[k]).expect("an input triangle there");
+                pairs.push((want, t[k]));
+            }
+        }
+        let (lo_in, hi_in, lo_out, hi_out) = pairs.iter().fold(
+            (
+                DVec2::INFINITY,
+                DVec2::NEG_INFINITY,
+                DVec2::INFINITY,
+                DVec2::NEG_INFINITY,
+            ),
+            |(a, b, c, e), (i, o)| (a.min(*i), b.max(*i), c.min(*o), e.max(*o)),
+        );
+        let scale = (hi_out - lo_out) / (hi_in - lo_in);
+        let texels = scale * DVec2::new(w, h);
+        assert!(
+            (texels.x - texels.y).abs() <= 1e-5 * texels.x,
+            "{name}: {texels}"
+        );
+        for (i, o) in &pairs {
+            let mapped = lo_out + (*i - lo_in) * scale;
+            assert!(
+                (mapped - *o).abs().max_element() <= 4.0 * f64::from(f32::EPSILON),
+                "{name}: {i} → {o}, affine {mapped}"
+            );
+            assert!(o.min_element() >= 0.0 && o.max_element() <= 1.0, "{o}");
+        }
+        boxes.push((lo_out, hi_out));
+    }
+    let (a, b) = (boxes[0], boxes[1]);
+    assert!(
+        a.1.x <= b.0.x || b.1.x <= a.0.x || a.1.y <= b.0.y || b.1.y <= a.0.y,
+        "the two kept primitives' regions overlap: {boxes:?}"
+    );
+    if let Some(summary) = validate_clean(std::slice::from_ref(&out)) {
+        eprintln!("{summary}");
+    }
+
+    // The same lightmap in-process: the CLI's EXR, and H at element centroids.
+    let (scene, baked, irradiance) = bake_in_process(&input);
+    let options = lightmap::Options {
+        texel_size: lightmap::default_texel_size(&scene.polygons),
+        max_size: lightmap::DEFAULT_MAX_SIZE,
+        shading: lightmap::Shading::Flat,
+    };
+    let map = lightmap::build_with(
+        &scene.polygons,
+        &baked.mesh,
+        &irradiance,
+        &options,
+        &lightmap::AuthoredUv::from_scene(&scene),
+        lightmap::UvMode::Auto,
+    )
+    .expect("auto");
+    let (ew, eh, texels) = read_exr(&d.join("mixed-out.lightmap.exr"));
+    assert_eq!((ew, eh), (map.width, map.height));
+    assert!(texels == map.texels, "the CLI's texels");
+    let peak = irradiance.iter().flatten().fold(0.0f64, |m, v| m.max(*v));
+    let mut worst = 0.0f64;
+    for (i, element) in baked.mesh.elements.iter().enumerate() {
+        let p = element.polygon as usize;
+        let polygon = &scene.polygons[p];
+        let uv: Vec<DVec2> = (0..polygon.vertices.len())
+            .map(|v| DVec2::from_array(map.texcoord(p, v).map(f64::from)))
+            .collect();
+        let at = texcoord_at(polygon, &uv, element.centroid);
+        let got = lightmap::sample_bilinear(&texels, ew, eh, at.to_array());
+        for c in 0..3 {
+            worst = worst.max((got[c] - irradiance[i][c]).abs() / peak);
+        }
+    }
+    println!(
+        "{} elements, atlas {}×{}, flat texels at centroids vs H: {worst:.2e} of the peak",
+        baked.mesh.elements.len(),
+        map.width,
+        map.height
+    );
+    assert!(worst <= 1e-6, "{worst}");
 }

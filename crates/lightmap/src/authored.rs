@@ -28,12 +28,16 @@ pub const MIN_PADDING: f64 = 2.0;
 /// Where the lightmap's charts come from (`--lightmap-uv`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum UvMode {
-    /// The input's `TEXCOORD_1` where the whole scene's is a usable layout, generated charts
-    /// otherwise (one atlas holds one layout); the decision per primitive is in
+    /// The input's `TEXCOORD_1` where the whole scene's is a usable layout; otherwise per
+    /// primitive instance: one whose own `TEXCOORD_1` is usable (in [0, 1], no overlaps
+    /// within it, not sampled by its material, one-sided) keeps its layout in its own atlas
+    /// region (its `TEXCOORD_1` scaled and moved: an affine map of the input's), the others
+    /// get generated charts. The decision per primitive is in
     /// [`crate::Lightmap::uv_decisions`].
     #[default]
     Auto,
-    /// The input's `TEXCOORD_1`; an error when it is not a usable layout.
+    /// The input's `TEXCOORD_1` as it is, for the whole scene; an error when it is not a
+    /// usable layout (overlaps across primitives included: no per-primitive regions).
     Keep,
     /// Charts made by the lightmap (one per polygon).
     Generate,
@@ -132,9 +136,16 @@ pub struct UvDecision {
     pub polygons: usize,
     /// Its `TEXCOORD_1` is the layout.
     pub kept: bool,
-    /// Why it was generated (empty when kept).
+    /// Why it was generated; for a primitive kept in its own atlas region, that (empty when
+    /// the whole scene's layout is kept as it is).
     pub reason: String,
+    /// Kept in its own atlas region: `TEXCOORD_1` is the input's scaled and moved.
+    pub own_region: bool,
 }
+
+/// The [`UvDecision::reason`] of a primitive kept in its own region.
+pub const OWN_REGION: &str =
+    "kept in its own atlas region (the input's TEXCOORD_1 scaled and moved: the whole scene's is not one usable layout)";
 
 /// The primitive instances of `polygons` in (node, mesh, primitive) order, each with its
 /// polygons.
@@ -156,6 +167,19 @@ pub(crate) struct Plan {
     pub(crate) decisions: Vec<UvDecision>,
     /// Some when the authored layout is kept: the atlas side N.
     pub(crate) kept: Option<Kept>,
+    /// `Auto` when the whole layout is not kept: the primitives kept in their own regions.
+    pub(crate) own: Vec<Own>,
+}
+
+/// A primitive instance whose own `TEXCOORD_1` is kept in its own atlas region.
+pub(crate) struct Own {
+    /// Its polygons, and each one's TEXCOORD_1 (in [0, 1]).
+    pub(crate) polygons: Vec<usize>,
+    pub(crate) uv: Vec<Vec<DVec2>>,
+    /// World area over UV area.
+    pub(crate) world_per_uv: f64,
+    /// "node N mesh M primitive P", for warnings.
+    pub(crate) label: String,
 }
 
 pub(crate) struct Kept {
@@ -186,6 +210,7 @@ pub(crate) fn plan(
             polygons: members.len(),
             kept: false,
             reason: String::new(),
+            own_region: false,
         })
         .collect();
     if mode == UvMode::Generate {
@@ -195,6 +220,7 @@ pub(crate) fn plan(
         return Ok(Plan {
             decisions,
             kept: None,
+            own: Vec::new(),
         });
     }
     if authored.polygons.len() != polygons.len() {
@@ -220,6 +246,7 @@ pub(crate) fn plan(
             }
         }
     }
+    let own_reasons = reasons.clone();
     let usable = reasons.iter().all(Option::is_none);
     let mut kept = None;
     if usable {
@@ -299,17 +326,61 @@ pub(crate) fn plan(
                 d.node, d.mesh, d.primitive
             )));
         }
-        for (d, r) in decisions.iter_mut().zip(&reasons) {
-            d.reason = r.clone().unwrap_or_else(|| {
-                "other primitives have no usable TEXCOORD_1 (one atlas holds one layout)".into()
-            });
+        // Auto: each primitive on its own — its own problems, then overlaps within it.
+        let mut own = Vec::new();
+        for ((d, members), r) in decisions.iter_mut().zip(groups.values()).zip(&own_reasons) {
+            let uv = members.iter().map(|&k| authored.polygons[k].as_deref());
+            let own_uv: Option<Vec<&[DVec2]>> = if r.is_none() {
+                uv.collect::<Result<_, _>>().ok()
+            } else {
+                None
+            };
+            let problem = match (r, &own_uv) {
+                (Some(r), _) => r.clone(),
+                (None, None) => "no usable TEXCOORD_1".into(),
+                (None, Some(uv)) => match check_layout(uv, None).overlap {
+                    Some((a, b)) => format!(
+                        "TEXCOORD_1 overlaps itself (polygons {} and {})",
+                        members[a], members[b]
+                    ),
+                    None => {
+                        let (world, area) =
+                            members.iter().zip(uv).fold((0.0, 0.0), |(w, u), (&k, t)| {
+                                (w + crate::polygon_area(&polygons[k]), u + fan_area(t))
+                            });
+                        d.kept = true;
+                        d.own_region = true;
+                        d.reason = OWN_REGION.into();
+                        own.push(Own {
+                            polygons: members.clone(),
+                            uv: uv.iter().map(|t| t.to_vec()).collect(),
+                            world_per_uv: world / area,
+                            label: format!(
+                                "node {} mesh {} primitive {}",
+                                d.node, d.mesh, d.primitive
+                            ),
+                        });
+                        continue;
+                    }
+                },
+            };
+            d.reason = problem;
         }
+        return Ok(Plan {
+            decisions,
+            kept: None,
+            own,
+        });
     } else {
         for d in &mut decisions {
             d.kept = true;
         }
     }
-    Ok(Plan { decisions, kept })
+    Ok(Plan {
+        decisions,
+        kept,
+        own: Vec::new(),
+    })
 }
 
 /// The area of the fan triangles (v0 vk vk+1) of a polygon's UVs (sum of absolute areas).

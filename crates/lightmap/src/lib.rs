@@ -1,6 +1,7 @@
 //! Lightmaps for a radiosity bake: charts (one per polygon; grouped across smooth, connected
 //! surfaces above [`GROUPED_ABOVE`] polygons where that at least halves the charts; or the input's own `TEXCOORD_1` kept,
-//! [`UvMode`]) packed into one atlas, and per-texel irradiance reconstructed from the element
+//! [`UvMode`]: the whole scene's as it is, or with `Auto` each usable primitive's in a region
+//! of its own beside generated charts) packed into one atlas, and per-texel irradiance reconstructed from the element
 //! solution, ready to be written as a linear EXR and an 8-bit PNG. Not here: several atlases
 //! (one atlas holds every chart, made coarser until it fits), unwrapping of curved charts
 //! (grouped charts are projected), alpha cut-outs.
@@ -42,7 +43,7 @@ mod group;
 mod pack;
 mod raster;
 
-pub use authored::{AuthoredUv, UvDecision, UvMode, MIN_PADDING};
+pub use authored::{AuthoredUv, UvDecision, UvMode, MIN_PADDING, OWN_REGION};
 pub use chart::{PADDING, PAIR_GAP};
 pub use encode::{
     encode_exr, encode_png, linear_to_srgb, srgb_to_linear, PngLightmap, EXR_COMMENT,
@@ -312,17 +313,23 @@ pub fn build_with(
             plan.decisions,
         ));
     }
-    // Grouped charts where they group: at least two polygons per chart on average, or more
-    // polygons than one etagere atlas takes as regions.
-    let groups = if polygons.len() > GROUPED_ABOVE {
-        Some(group::groups(polygons))
+    let layout = if !plan.own.is_empty() {
+        Some(mixed_layout(polygons, &plan.own, options)?)
     } else {
-        None
+        // Grouped charts where they group: at least two polygons per chart on average, or
+        // more polygons than one etagere atlas takes as regions.
+        let groups = (polygons.len() > GROUPED_ABOVE)
+            .then(|| group::groups(polygons))
+            .filter(|g| 2 * g.len() <= polygons.len() || polygons.len() > pack::MAX_REGIONS);
+        match groups {
+            Some(groups) => {
+                let all: Vec<usize> = (0..polygons.len()).collect();
+                Some(packed_layout(polygons, &[], &all, Some(groups), options)?)
+            }
+            None => None,
+        }
     };
-    if let Some(groups) =
-        groups.filter(|g| 2 * g.len() <= polygons.len() || polygons.len() > pack::MAX_REGIONS)
-    {
-        let layout = grouped_layout(polygons, groups, options)?;
+    if let Some(layout) = layout {
         return Ok(assemble(
             layout,
             options,
@@ -550,32 +557,139 @@ fn assemble(
     }
 }
 
-/// Grouped charts ([`group`]) packed into one atlas at the requested texel size, or coarser
-/// until they fit.
-fn grouped_layout(
+/// One rectangle for the packer: its charts (polygon, texel coordinates inside it).
+struct Item {
+    width: u32,
+    height: u32,
+    charts: Vec<(usize, Vec<DVec2>)>,
+}
+
+/// A primitive's own TEXCOORD_1 at `texels_per_unit` (world): scaled by
+/// sqrt(world area / UV area) × texels per unit, moved so its UV bounding box starts
+/// [`PADDING`] texels inside the rectangle; `None` when it does not fit in u32. Also the
+/// scale (texels per UV unit).
+fn own_item(own: &authored::Own, texels_per_unit: f64) -> Option<(Item, f64)> {
+    let s = own.world_per_uv.sqrt() * texels_per_unit;
+    let (lo, hi) = own.uv.iter().flatten().fold(
+        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+        |(lo, hi), q| (lo.min(*q), hi.max(*q)),
+    );
+    let size = ((hi - lo) * s).ceil().max(DVec2::ONE);
+    let limit = f64::from(u32::MAX / 4);
+    if !(size.x.is_finite() && size.y.is_finite() && size.x <= limit && size.y <= limit) {
+        return None;
+    }
+    let even = |n: u32| n + n % 2;
+    let p = DVec2::splat(f64::from(PADDING));
+    let charts = own
+        .polygons
+        .iter()
+        .zip(&own.uv)
+        .map(|(&k, t)| (k, t.iter().map(|q| (*q - lo) * s + p).collect()))
+        .collect();
+    Some((
+        Item {
+            width: even(size.x as u32 + 2 * PADDING),
+            height: even(size.y as u32 + 2 * PADDING),
+            charts,
+        },
+        s,
+    ))
+}
+
+/// `--lightmap-uv auto` when only some primitives' TEXCOORD_1 is usable: each of those
+/// primitives is one rectangle of its own layout ([`own_item`]), the other polygons get
+/// generated charts (grouped as in [`build_with`], or one per polygon).
+fn mixed_layout(
     polygons: &[Polygon],
-    groups: Vec<group::Group>,
+    own: &[authored::Own],
     options: &Options,
 ) -> Result<Assembly, LightmapError> {
+    let mut owned = vec![false; polygons.len()];
+    for o in own {
+        for &k in &o.polygons {
+            owned[k] = true;
+        }
+    }
+    let rest: Vec<usize> = (0..polygons.len()).filter(|&k| !owned[k]).collect();
+    let groups = if rest.len() > GROUPED_ABOVE {
+        let sub: Vec<Polygon> = rest.iter().map(|&k| polygons[k].clone()).collect();
+        Some(group::groups(&sub))
+            .filter(|g| 2 * g.len() <= sub.len() || sub.len() > pack::MAX_REGIONS)
+    } else {
+        None
+    };
+    packed_layout(polygons, own, &rest, groups, options)
+}
+
+/// Rectangles skyline-packed into one atlas at the requested texel size, or coarser until
+/// they fit: each `own` primitive's ([`own_item`]), and for the polygons `rest` the
+/// grouped charts `groups` (indices into `rest`), or without groups one chart per polygon
+/// (`chart::layout`).
+fn packed_layout(
+    polygons: &[Polygon],
+    own: &[authored::Own],
+    rest: &[usize],
+    groups: Option<Vec<group::Group>>,
+    options: &Options,
+) -> Result<Assembly, LightmapError> {
+    let sub: Vec<Polygon> = if groups.is_none() {
+        rest.iter().map(|&k| polygons[k].clone()).collect()
+    } else {
+        Vec::new()
+    };
+    let chart_count = groups.as_ref().map_or(sub.len(), Vec::len);
     let max = options.max_size;
     let area: f64 = polygons.iter().map(polygon_area).sum();
     let floor = (area / (f64::from(max) * f64::from(max))).sqrt();
     let mut texel = options.texel_size.max(floor);
     let mut reductions = u32::from(texel > options.texel_size);
     for _ in 0..64 {
-        let Some(regions) = groups
-            .iter()
-            .map(|g| group::region(g, 1.0 / texel))
-            .collect::<Option<Vec<_>>>()
-        else {
+        let per_unit = 1.0 / texel;
+        let mut items = Vec::new();
+        let mut scales = Vec::new();
+        let mut fits = true;
+        for o in own {
+            match own_item(o, per_unit) {
+                Some((item, s)) => {
+                    items.push(item);
+                    scales.push(s);
+                }
+                None => fits = false,
+            }
+        }
+        match &groups {
+            Some(groups) => {
+                for g in groups {
+                    match group::region(g, per_unit) {
+                        Some((width, height, uv)) => items.push(Item {
+                            width,
+                            height,
+                            charts: g.polygons.iter().map(|&p| rest[p]).zip(uv).collect(),
+                        }),
+                        None => fits = false,
+                    }
+                }
+            }
+            None if sub.is_empty() => {}
+            None => match chart::layout(&sub, per_unit) {
+                Some(regions) => items.extend(regions.into_iter().map(|r| Item {
+                    width: r.width,
+                    height: r.height,
+                    charts: r.charts.into_iter().map(|(p, uv)| (rest[p], uv)).collect(),
+                })),
+                None => fits = false,
+            },
+        }
+        if !fits {
             texel *= 2.0;
             reductions += 1;
             continue;
-        };
-        let sizes: Vec<(u32, u32)> = regions.iter().map(|r| (r.0, r.1)).collect();
+        }
+        let sizes: Vec<(u32, u32)> = items.iter().map(|r| (r.width, r.height)).collect();
         if let Some(packing) = pack::pack_skyline(&sizes, max) {
             let mut charts = vec![Vec::new(); polygons.len()];
-            let mut rects = vec![
+            let mut regions = vec![
                 Rect {
                     x: 0,
                     y: 0,
@@ -584,27 +698,40 @@ fn grouped_layout(
                 };
                 polygons.len()
             ];
-            for ((g, (w, h, uv)), &(x, y)) in groups.iter().zip(regions).zip(&packing.positions) {
+            for (item, &(x, y)) in items.iter().zip(&packing.positions) {
                 let offset = DVec2::new(f64::from(x), f64::from(y));
-                for (&p, t) in g.polygons.iter().zip(uv) {
-                    charts[p] = t.iter().map(|q| *q + offset).collect();
-                    rects[p] = Rect {
+                for (p, uv) in &item.charts {
+                    charts[*p] = uv.iter().map(|q| *q + offset).collect();
+                    regions[*p] = Rect {
                         x,
                         y,
-                        width: w,
-                        height: h,
+                        width: item.width,
+                        height: item.height,
                     };
                 }
             }
+            let warnings = own
+                .iter()
+                .zip(&scales)
+                .filter_map(|(o, &s)| {
+                    let uv: Vec<&[DVec2]> = o.uv.iter().map(Vec::as_slice).collect();
+                    authored::check_layout(&uv, Some(s)).padding.map(|gap| {
+                        format!(
+                            "{}: its TEXCOORD_1 islands are {gap:.2} texels apart in its atlas region (under {MIN_PADDING}): filtering mixes their light",
+                            o.label
+                        )
+                    })
+                })
+                .collect();
             return Ok(Assembly {
                 width: packing.width,
                 height: packing.height,
                 texel_size: texel,
                 reductions,
                 charts,
-                regions: rects,
-                chart_count: groups.len(),
-                warnings: Vec::new(),
+                regions,
+                chart_count,
+                warnings,
             });
         }
         texel *= coarser(&sizes, max);
