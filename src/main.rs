@@ -190,13 +190,20 @@ pub struct Cli {
     #[arg(long, value_enum, default_value_t = Target::Both)]
     pub target: Target,
     /// Lightmap texel size in world units (default: the scene's bounding-box diagonal / 256).
-    /// Made coarser automatically when the atlas would be larger than --lightmap-max.
+    /// Made coarser automatically when the atlases would be larger than --lightmap-max
+    /// (after --lightmap-atlases atlases).
     #[arg(long, value_name = "L", allow_negative_numbers = true)]
     pub lightmap_texel: Option<f64>,
     /// Largest lightmap atlas side, in texels.
     #[arg(long, value_name = "N", default_value_t = lightmap::DEFAULT_MAX_SIZE,
           value_parser = clap::value_parser!(u32).range(16..=16384))]
     pub lightmap_max: u32,
+    /// Most lightmap atlases: when the charts at the texel size do not fit one
+    /// --lightmap-max atlas, whole primitives are packed into several (each its own PNG and
+    /// EXR) before the texel size is made coarser; 1 keeps one atlas.
+    #[arg(long, value_name = "N", default_value_t = lightmap::DEFAULT_MAX_ATLASES,
+          value_parser = clap::value_parser!(u32).range(1..=256))]
+    pub lightmap_atlases: u32,
     /// Where the lightmap's charts come from. `keep`: the input's TEXCOORD_1 as authored
     /// (refused when it leaves [0, 1], overlaps — two primitives or instances share texels, or
     /// a double-sided face's sides would — or a material samples it as a texture set);

@@ -133,6 +133,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
                 .unwrap_or_else(|| lightmap::default_texel_size(&scene.polygons)),
             max_size: cli.lightmap_max,
             shading: lightmap_shading(cli.shading),
+            max_atlases: cli.lightmap_atlases,
         };
         lightmap::plan_uv(
             &scene.polygons,
@@ -202,6 +203,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
                 .unwrap_or_else(|| lightmap::default_texel_size(&scene.polygons)),
             max_size: cli.lightmap_max,
             shading: lightmap_shading(cli.shading),
+            max_atlases: cli.lightmap_atlases,
         };
         bake_core::Progress::start(&bars, "lightmap", 0);
         let built = lightmap::build_with(

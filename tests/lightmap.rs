@@ -191,6 +191,7 @@ fn build(solved: &Solved, texel: Option<f64>) -> Lightmap {
         texel_size: texel.unwrap_or_else(|| lightmap::default_texel_size(&solved.scene.polygons)),
         max_size: lightmap::DEFAULT_MAX_SIZE,
         shading: lightmap::Shading::Smooth,
+        max_atlases: lightmap::DEFAULT_MAX_ATLASES,
     };
     lightmap::build(&solved.scene.polygons, &solved.mesh, &solved.h, &options)
         .expect("build the lightmap")
@@ -470,6 +471,7 @@ fn flat_lightmap_texels_at_element_centroids_are_the_elements_h() {
             texel_size: lightmap::default_texel_size(&solved.scene.polygons),
             max_size: lightmap::DEFAULT_MAX_SIZE,
             shading: lightmap::Shading::Flat,
+            max_atlases: lightmap::DEFAULT_MAX_ATLASES,
         };
         let lightmap = lightmap::build(&solved.scene.polygons, &solved.mesh, &solved.h, &options)
             .expect("build the flat lightmap");
@@ -682,6 +684,7 @@ fn texel_size_grows_to_fit_the_maximum_atlas() {
         texel_size: lightmap::default_texel_size(&solved.scene.polygons) / 8.0,
         max_size: 512,
         shading: lightmap::Shading::Smooth,
+        max_atlases: 1,
     };
     let lightmap =
         lightmap::build(&solved.scene.polygons, &solved.mesh, &solved.h, &options).expect("fits");

@@ -24,6 +24,7 @@ mod common;
 
 use common::{bake, blender_installed, data_uri, skip, tools_dir, validate_clean, write_json};
 use glam::{DVec2, DVec3};
+use lightmap::UvMode::{Auto, Generate};
 use serde_json::{json, Value};
 use std::path::Path;
 use std::process::Command;
@@ -402,6 +403,7 @@ fn blender_lightmap_pack_is_kept_as_authored() {
         texel_size: lightmap::default_texel_size(&scene.polygons),
         max_size: lightmap::DEFAULT_MAX_SIZE,
         shading: lightmap::Shading::Smooth,
+        max_atlases: lightmap::DEFAULT_MAX_ATLASES,
     };
     let authored = lightmap::AuthoredUv::from_scene(&scene);
     let map = lightmap::build_with(
@@ -458,6 +460,60 @@ fn bake_in_process(path: &Path) -> (importer::Scene, bake_core::Bake, Vec<[f64; 
     let mut baked = bake_core::run(&scene, &settings, &bake_core::Silent).expect("bake");
     let h = baked.irradiance.take().expect("irradiance");
     (scene, baked, h)
+}
+
+/// The flat lightmap of an in-process bake with the scene's authored TEXCOORD_1 under
+/// `mode`, at (texel size, atlas side, most atlases).
+fn flat_lightmap(
+    scene: &importer::Scene,
+    baked: &bake_core::Bake,
+    irradiance: &[[f64; 3]],
+    (texel_size, max_size, max_atlases): (f64, u32, u32),
+    mode: lightmap::UvMode,
+) -> lightmap::Lightmap {
+    let options = lightmap::Options {
+        texel_size,
+        max_size,
+        shading: lightmap::Shading::Flat,
+        max_atlases,
+    };
+    lightmap::build_with(
+        &scene.polygons,
+        &baked.mesh,
+        irradiance,
+        &options,
+        &lightmap::AuthoredUv::from_scene(scene),
+        mode,
+    )
+    .expect("build the lightmap")
+}
+
+/// The largest difference, relative to the peak H, between each element's H and the EXR
+/// of its polygon's atlas (`exrs`, by atlas) sampled at its centroid through `map`'s
+/// TEXCOORD_1.
+fn flat_error(
+    scene: &importer::Scene,
+    baked: &bake_core::Bake,
+    irradiance: &[[f64; 3]],
+    map: &lightmap::Lightmap,
+    exrs: &[(u32, u32, Vec<[f32; 3]>)],
+) -> f64 {
+    let peak = irradiance.iter().flatten().fold(0.0f64, |m, v| m.max(*v));
+    let mut worst = 0.0f64;
+    for (i, element) in baked.mesh.elements.iter().enumerate() {
+        let p = element.polygon as usize;
+        let polygon = &scene.polygons[p];
+        let uv: Vec<DVec2> = (0..polygon.vertices.len())
+            .map(|v| DVec2::from_array(map.texcoord(p, v).map(f64::from)))
+            .collect();
+        let at = texcoord_at(polygon, &uv, element.centroid);
+        let (w, h, texels) = &exrs[map.charts[p].atlas as usize];
+        let got = lightmap::sample_bilinear(texels, *w, *h, at.to_array());
+        for c in 0..3 {
+            worst = worst.max((got[c] - irradiance[i][c]).abs() / peak);
+        }
+    }
+    worst
 }
 
 /// TEXCOORD_1 at `point` of `polygon`, over the fan triangle (v0 vk vk+1) holding it.
@@ -755,42 +811,150 @@ fn auto_keeps_each_usable_primitive_in_its_own_region() {
 
     // The same lightmap in-process: the CLI's EXR, and H at element centroids.
     let (scene, baked, irradiance) = bake_in_process(&input);
-    let options = lightmap::Options {
-        texel_size: lightmap::default_texel_size(&scene.polygons),
-        max_size: lightmap::DEFAULT_MAX_SIZE,
-        shading: lightmap::Shading::Flat,
-    };
-    let map = lightmap::build_with(
-        &scene.polygons,
-        &baked.mesh,
-        &irradiance,
-        &options,
-        &lightmap::AuthoredUv::from_scene(&scene),
-        lightmap::UvMode::Auto,
-    )
-    .expect("auto");
-    let (ew, eh, texels) = read_exr(&d.join("mixed-out.lightmap.exr"));
-    assert_eq!((ew, eh), (map.width, map.height));
-    assert!(texels == map.texels, "the CLI's texels");
-    let peak = irradiance.iter().flatten().fold(0.0f64, |m, v| m.max(*v));
-    let mut worst = 0.0f64;
-    for (i, element) in baked.mesh.elements.iter().enumerate() {
-        let p = element.polygon as usize;
-        let polygon = &scene.polygons[p];
-        let uv: Vec<DVec2> = (0..polygon.vertices.len())
-            .map(|v| DVec2::from_array(map.texcoord(p, v).map(f64::from)))
-            .collect();
-        let at = texcoord_at(polygon, &uv, element.centroid);
-        let got = lightmap::sample_bilinear(&texels, ew, eh, at.to_array());
-        for c in 0..3 {
-            worst = worst.max((got[c] - irradiance[i][c]).abs() / peak);
-        }
-    }
+    let texel = lightmap::default_texel_size(&scene.polygons);
+    let map = flat_lightmap(&scene, &baked, &irradiance, (texel, 4096, 16), Auto);
+    let exr = read_exr(&d.join("mixed-out.lightmap.exr"));
+    assert_eq!((exr.0, exr.1), (map.width, map.height));
+    assert!(exr.2 == map.texels, "the CLI's texels");
+    let worst = flat_error(&scene, &baked, &irradiance, &map, &[exr]);
     println!(
         "{} elements, atlas {}×{}, flat texels at centroids vs H: {worst:.2e} of the peak",
         baked.mesh.elements.len(),
         map.width,
         map.height
     );
+    assert!(worst <= 1e-6, "{worst}");
+}
+
+// ---- several atlases ----
+
+/// Three primitives (each keeping its own TEXCOORD_1 in a region of 100 × 46 texels at 40
+/// texels per metre) under `--lightmap-max 128`: one atlas cannot hold them at that texel
+/// size, so they go into two atlases (whole primitives per atlas) instead of coarser texels.
+/// Each atlas is its own PNG and EXR, each primitive's material points at the lightmap of its
+/// atlas and its TEXCOORD_1 lies in [0, 1]; validator clean; the flat texels at element
+/// centroids, sampled in the polygon's own atlas, are the elements' H. With
+/// `--lightmap-atlases 1` the texel size grows instead, as before.
+#[test]
+fn charts_that_need_several_atlases_get_them() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let d = dir.path();
+    let good = (([0.0625, 0.0625], 0.375), ([0.5625, 0.0625], 0.375));
+    let doc = primitives_scene(&[good, good, good]);
+    let input = d.join("three.gltf");
+    write_json(&input, &doc);
+    let run = |atlases: &str, name: &str| {
+        let out = d.join(format!("{name}.gltf"));
+        let report = d.join(format!("{name}.json"));
+        let run = bake([
+            input.as_os_str(),
+            out.as_os_str(),
+            "--target".as_ref(),
+            "lightmap".as_ref(),
+            "--shading".as_ref(),
+            "flat".as_ref(),
+            "--lightmap-texel".as_ref(),
+            "0.025".as_ref(),
+            "--lightmap-max".as_ref(),
+            "128".as_ref(),
+            "--lightmap-atlases".as_ref(),
+            atlases.as_ref(),
+            "--report".as_ref(),
+            report.as_os_str(),
+        ])
+        .success();
+        (out, run)
+    };
+    let (out, several) = run("16", "several");
+    assert!(
+        !several.stderr.contains("texel size raised"),
+        "{}",
+        several.stderr
+    );
+    let (_, one) = run("1", "one");
+    assert!(one.stderr.contains("texel size raised"), "{}", one.stderr);
+
+    let (scene, baked, irradiance) = bake_in_process(&input);
+    let map = flat_lightmap(&scene, &baked, &irradiance, (0.025, 128, 16), Auto);
+    let atlases = map.atlases();
+    assert_eq!(atlases.len(), 2, "{:?}", map.stats);
+    assert_eq!((map.stats.reductions, map.texel_size), (0, 0.025));
+    // Generated charts (one per polygon) split the same way.
+    let generated = flat_lightmap(&scene, &baked, &irradiance, (0.025, 128, 16), Generate);
+    assert!(generated.atlases().len() >= 2, "{:?}", generated.stats);
+    assert_eq!(generated.stats.reductions, 0);
+    for (p, chart) in generated.charts.iter().enumerate() {
+        let o = scene.polygons[p].origin;
+        let same = scene.polygons.iter().zip(&generated.charts).all(|(q, c)| {
+            (q.origin.node, q.origin.primitive) != (o.node, o.primitive) || c.atlas == chart.atlas
+        });
+        assert!(same, "polygon {p}: its primitive is split across atlases");
+    }
+    println!(
+        "atlases {:?}, occupancy {:.3}",
+        atlases
+            .iter()
+            .map(|a| (a.width, a.height))
+            .collect::<Vec<_>>(),
+        map.stats.occupancy
+    );
+    // Each atlas's EXR is the in-process atlas; its PNG is beside it.
+    let mut exrs = Vec::new();
+    for (k, atlas) in atlases.iter().enumerate() {
+        let suffix = if k == 0 {
+            String::new()
+        } else {
+            format!("-{k}")
+        };
+        let (w, h, texels) = read_exr(&d.join(format!("several.lightmap{suffix}.exr")));
+        assert_eq!((w, h), (atlas.width, atlas.height));
+        assert!(w <= 128 && h <= 128);
+        assert!(texels == atlas.texels, "atlas {k}: the CLI's texels");
+        assert!(d.join(format!("several.lightmap{suffix}.png")).is_file());
+        exrs.push((w, h, texels));
+    }
+    // The output: each primitive's lightmap texture is its atlas's PNG; TEXCOORD_1 in [0, 1].
+    let (document, buffers, _) = gltf::import(&out).expect("re-read");
+    assert_eq!(document.images().count(), 2);
+    for node in document.nodes() {
+        let Some(mesh) = node.mesh() else { continue };
+        let polygon = scene
+            .polygons
+            .iter()
+            .position(|p| p.origin.node == node.index())
+            .expect("the node's polygons");
+        let atlas = map.charts[polygon].atlas as usize;
+        let suffix = if atlas == 0 {
+            String::new()
+        } else {
+            format!("-{atlas}")
+        };
+        for primitive in mesh.primitives() {
+            let material = primitive.material().index().expect("a material");
+            let json = document.as_json();
+            let extension = json.materials[material]
+                .extensions
+                .as_ref()
+                .and_then(|e| e.others.get("MOZ_lightmap"))
+                .expect("MOZ_lightmap");
+            let texture = extension["index"].as_u64().expect("index") as usize;
+            let image = json.textures[texture].source.value();
+            assert_eq!(
+                json.images[image].uri.as_deref(),
+                Some(format!("several.lightmap{suffix}.png").as_str()),
+                "node {}",
+                node.index()
+            );
+            let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
+            for uv in reader.read_tex_coords(1).expect("TEXCOORD_1").into_f32() {
+                assert!(uv.iter().all(|c| (0.0..=1.0).contains(c)), "{uv:?}");
+            }
+        }
+    }
+    if let Some(summary) = validate_clean(std::slice::from_ref(&out)) {
+        eprintln!("{summary}");
+    }
+    // Flat texels at element centroids, in each polygon's own atlas.
+    let worst = flat_error(&scene, &baked, &irradiance, &map, &exrs);
     assert!(worst <= 1e-6, "{worst}");
 }

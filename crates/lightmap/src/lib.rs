@@ -1,10 +1,12 @@
 //! Lightmaps for a radiosity bake: charts (one per polygon; grouped across smooth, connected
 //! surfaces above [`GROUPED_ABOVE`] polygons where that at least halves the charts; or the input's own `TEXCOORD_1` kept,
 //! [`UvMode`]: the whole scene's as it is, or with `Auto` each usable primitive's in a region
-//! of its own beside generated charts) packed into one atlas, and per-texel irradiance reconstructed from the element
-//! solution, ready to be written as a linear EXR and an 8-bit PNG. Not here: several atlases
-//! (one atlas holds every chart, made coarser until it fits), unwrapping of curved charts
-//! (grouped charts are projected), alpha cut-outs.
+//! of its own beside generated charts) packed into one atlas — or, when they do not fit one at the texel size, into
+//! several ([`Options::max_atlases`], whole primitives per atlas, [`Lightmap::atlases`]) —
+//! and per-texel irradiance reconstructed from the element solution, ready to be written as
+//! a linear EXR and an 8-bit PNG per atlas. Not here: unwrapping of curved charts (grouped
+//! charts are projected), splitting one primitive across atlases (a primitive too large for
+//! one atlas makes the texels coarser), alpha cut-outs.
 //!
 //! Public API: [`build`] with [`Options`] → [`Lightmap`]; [`encode_exr`], [`encode_png`].
 //!
@@ -46,7 +48,8 @@ mod raster;
 pub use authored::{AuthoredUv, UvDecision, UvMode, MIN_PADDING, OWN_REGION};
 pub use chart::{PADDING, PAIR_GAP};
 pub use encode::{
-    encode_exr, encode_png, linear_to_srgb, srgb_to_linear, PngLightmap, EXR_COMMENT,
+    encode_exr, encode_exr_atlas, encode_png, encode_png_atlas, linear_to_srgb, srgb_to_linear,
+    PngLightmap, EXR_COMMENT,
 };
 pub use group::{CHART_CONE_DEGREES, GROUPED_ABOVE};
 pub use raster::DILATION_RADIUS;
@@ -78,7 +81,14 @@ pub struct Options {
     pub max_size: u32,
     /// How texels are made from the per-element values (`--shading`).
     pub shading: Shading,
+    /// Most atlases (≥ 1): when the charts at the requested texel size do not fit one
+    /// `max_size` atlas, whole primitives are packed into several (`--lightmap-atlases`)
+    /// before the texel size is made coarser.
+    pub max_atlases: u32,
 }
+
+/// Default `--lightmap-atlases`.
+pub const DEFAULT_MAX_ATLASES: u32 = 16;
 
 /// How texels are reconstructed from the per-element values (`--shading`, as for the
 /// vertex bake).
@@ -144,6 +154,27 @@ pub struct Chart {
     /// rectangle, the other one. Regions never overlap. For a kept authored layout: the
     /// chart's bounding box in whole texels (neighbours in one island share edges).
     pub region: Rect,
+    /// The atlas it is in (0: the [`Lightmap`]'s own texels; k ≥ 1: `more[k − 1]`).
+    pub atlas: u32,
+}
+
+/// A second or later atlas of a [`Lightmap`] (the first is the lightmap's own fields).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Atlas {
+    pub width: u32,
+    pub height: u32,
+    /// Linear irradiance H per texel, row-major from the top-left.
+    pub texels: Vec<[f32; 3]>,
+    pub coverage: Vec<Texel>,
+}
+
+/// One atlas of a [`Lightmap`], borrowed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AtlasRef<'a> {
+    pub width: u32,
+    pub height: u32,
+    pub texels: &'a [[f32; 3]],
+    pub coverage: &'a [Texel],
 }
 
 /// Numbers about a built lightmap.
@@ -163,11 +194,14 @@ pub struct Stats {
     /// Charts made: one per polygon, or per group above [`GROUPED_ABOVE`] polygons (when
     /// grouping at least halves the count); 0 for a kept authored layout.
     pub charts: usize,
+    /// Atlases (1 unless the charts did not fit one at the texel size).
+    pub atlases: usize,
 }
 
 /// A built lightmap: the atlas of irradiance and where every polygon is in it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Lightmap {
+    /// The first atlas (see [`Lightmap::atlases`] for all).
     pub width: u32,
     pub height: u32,
     /// World units per texel used (≥ the requested one).
@@ -176,6 +210,8 @@ pub struct Lightmap {
     /// Linear irradiance H per texel, row-major from the top-left.
     pub texels: Vec<[f32; 3]>,
     pub coverage: Vec<Texel>,
+    /// The second and later atlases, when the charts needed several.
+    pub more: Vec<Atlas>,
     /// One per polygon, in polygon order.
     pub charts: Vec<Chart>,
     /// The smoothed, welded H per mesh vertex the texels were reconstructed from.
@@ -329,6 +365,19 @@ pub fn build_with(
             None => None,
         }
     };
+    // One chart per polygon: one atlas, or when that needs coarser texels several.
+    let fitted = match layout {
+        Some(_) => None,
+        None => Some(fit(polygons, options)?),
+    };
+    let layout = match (layout, &fitted) {
+        (Some(layout), _) => Some(layout),
+        (None, Some(f)) if f.3 > 0 && options.max_atlases > 1 => {
+            let all: Vec<usize> = (0..polygons.len()).collect();
+            Some(packed_layout(polygons, &[], &all, None, options)?)
+        }
+        _ => None,
+    };
     if let Some(layout) = layout {
         return Ok(assemble(
             layout,
@@ -340,7 +389,8 @@ pub fn build_with(
             plan.decisions,
         ));
     }
-    let (texel_size, regions, packing, reductions) = fit(polygons, options)?;
+    let (texel_size, regions, packing, reductions) =
+        fitted.ok_or_else(|| LightmapError::InvalidData("no layout".into()))?;
     let width = packing.width as usize;
     let mut texels = vec![[0.0f32; 3]; width * packing.height as usize];
     let mut coverage = vec![Texel::Unused; texels.len()];
@@ -369,6 +419,7 @@ pub fn build_with(
                 polygon: *polygon,
                 uv: uv.iter().map(|p| (*p + offset).to_array()).collect(),
                 region: rect,
+                atlas: 0,
             });
         }
     }
@@ -383,6 +434,7 @@ pub fn build_with(
         welded_vertices,
         reductions,
         charts: polygons.len(),
+        atlases: 1,
         ..Stats::default()
     };
     for (k, t) in coverage.iter().enumerate() {
@@ -409,6 +461,7 @@ pub fn build_with(
         requested_texel_size: options.texel_size,
         texels,
         coverage,
+        more: Vec::new(),
         charts,
         vertex_values,
         stats,
@@ -461,10 +514,11 @@ fn kept_lightmap(
         })
         .into_iter()
         .collect();
+    let atlas = vec![0; kept.charts.len()];
     assemble(
         Assembly {
-            width: side,
-            height: side,
+            pages: vec![(side, side)],
+            atlas,
             texel_size: kept.texel_size,
             reductions: kept.reductions,
             charts: kept.charts,
@@ -483,8 +537,10 @@ fn kept_lightmap(
 
 /// An atlas laid out by per-polygon texel-space charts, before its texels are made.
 struct Assembly {
-    width: u32,
-    height: u32,
+    /// Each atlas's size.
+    pages: Vec<(u32, u32)>,
+    /// Per polygon, its atlas.
+    atlas: Vec<u32>,
     texel_size: f64,
     reductions: u32,
     charts: Vec<Vec<DVec2>>,
@@ -502,50 +558,85 @@ fn assemble(
     welded_vertices: usize,
     uv_decisions: Vec<UvDecision>,
 ) -> Lightmap {
-    let block = raster::atlas_texels(
-        a.width,
-        a.height,
-        &a.charts,
-        &fields,
-        source(&flat, &vertex_values),
-    );
-    let n = a.width as usize;
     let mut stats = Stats {
         welded_vertices,
         reductions: a.reductions,
         charts: a.chart_count,
+        atlases: a.pages.len(),
         ..Stats::default()
     };
-    for (k, t) in block.coverage.iter().enumerate() {
-        match t {
-            Texel::Chart(p) => {
-                stats.chart_texels += 1;
-                let c = DVec2::new((k % n) as f64 + 0.5, (k / n) as f64 + 0.5);
-                stats.interior_texels += u64::from(raster::inside(c, &a.charts[*p as usize]));
+    let mut total = 0u64;
+    let mut atlases = Vec::with_capacity(a.pages.len());
+    for (page, &(width, height)) in a.pages.iter().enumerate() {
+        // This atlas's charts; the others' are empty (skipped).
+        let charts: Vec<Vec<DVec2>> = a
+            .charts
+            .iter()
+            .zip(&a.atlas)
+            .map(|(c, &k)| {
+                if k as usize == page {
+                    c.clone()
+                } else {
+                    Vec::new()
+                }
+            })
+            .collect();
+        let block = raster::atlas_texels(
+            width,
+            height,
+            &charts,
+            &fields,
+            source(&flat, &vertex_values),
+        );
+        let n = width as usize;
+        for (k, t) in block.coverage.iter().enumerate() {
+            match t {
+                Texel::Chart(p) => {
+                    stats.chart_texels += 1;
+                    let c = DVec2::new((k % n) as f64 + 0.5, (k / n) as f64 + 0.5);
+                    stats.interior_texels += u64::from(raster::inside(c, &charts[*p as usize]));
+                }
+                Texel::Gutter(_) => stats.gutter_texels += 1,
+                Texel::Unused => {}
             }
-            Texel::Gutter(_) => stats.gutter_texels += 1,
-            Texel::Unused => {}
         }
+        total += block.coverage.len() as u64;
+        atlases.push(Atlas {
+            width,
+            height,
+            texels: block.values,
+            coverage: block.coverage,
+        });
     }
-    stats.occupancy = stats.chart_texels as f64 / block.coverage.len() as f64;
+    stats.occupancy = stats.chart_texels as f64 / total.max(1) as f64;
     let charts = a
         .charts
         .iter()
         .zip(&a.regions)
+        .zip(&a.atlas)
         .enumerate()
-        .map(|(polygon, (uv, region))| Chart {
+        .map(|(polygon, ((uv, region), &atlas))| Chart {
             polygon,
             uv: uv.iter().map(|p| p.to_array()).collect(),
             region: *region,
+            atlas,
         })
         .collect();
+    let mut pages = atlases.into_iter();
+    let first = pages.next().unwrap_or(Atlas {
+        width: 0,
+        height: 0,
+        texels: Vec::new(),
+        coverage: Vec::new(),
+    });
     Lightmap {
-        width: a.width,
-        height: a.height,
+        width: first.width,
+        height: first.height,
         texel_size: a.texel_size,
         requested_texel_size: options.texel_size,
-        texels: block.values,
-        coverage: block.coverage,
+        texels: first.texels,
+        coverage: first.coverage,
+        more: pages.collect(),
         charts,
         vertex_values,
         stats,
@@ -641,7 +732,9 @@ fn packed_layout(
     let chart_count = groups.as_ref().map_or(sub.len(), Vec::len);
     let max = options.max_size;
     let area: f64 = polygons.iter().map(polygon_area).sum();
-    let floor = (area / (f64::from(max) * f64::from(max))).sqrt();
+    // No packing beats the polygons' own area over every atlas allowed.
+    let room = f64::from(max) * f64::from(max) * f64::from(options.max_atlases.max(1));
+    let floor = (area / room).sqrt();
     let mut texel = options.texel_size.max(floor);
     let mut reductions = u32::from(texel > options.texel_size);
     for _ in 0..64 {
@@ -687,8 +780,16 @@ fn packed_layout(
             continue;
         }
         let sizes: Vec<(u32, u32)> = items.iter().map(|r| (r.width, r.height)).collect();
-        if let Some(packing) = pack::pack_skyline(&sizes, max) {
+        let pages = match pack::pack_skyline(&sizes, max) {
+            Some(packing) => Some(vec![(packing, (0..items.len()).collect())]),
+            None if options.max_atlases > 1 => {
+                atlases(&items, polygons, max, options.max_atlases as usize)
+            }
+            None => None,
+        };
+        if let Some(pages) = pages {
             let mut charts = vec![Vec::new(); polygons.len()];
+            let mut atlas = vec![0; polygons.len()];
             let mut regions = vec![
                 Rect {
                     x: 0,
@@ -698,16 +799,20 @@ fn packed_layout(
                 };
                 polygons.len()
             ];
-            for (item, &(x, y)) in items.iter().zip(&packing.positions) {
-                let offset = DVec2::new(f64::from(x), f64::from(y));
-                for (p, uv) in &item.charts {
-                    charts[*p] = uv.iter().map(|q| *q + offset).collect();
-                    regions[*p] = Rect {
-                        x,
-                        y,
-                        width: item.width,
-                        height: item.height,
-                    };
+            for (page, (packing, members)) in pages.iter().enumerate() {
+                for (&i, &(x, y)) in members.iter().zip(&packing.positions) {
+                    let item = &items[i];
+                    let offset = DVec2::new(f64::from(x), f64::from(y));
+                    for (p, uv) in &item.charts {
+                        charts[*p] = uv.iter().map(|q| *q + offset).collect();
+                        atlas[*p] = page as u32;
+                        regions[*p] = Rect {
+                            x,
+                            y,
+                            width: item.width,
+                            height: item.height,
+                        };
+                    }
                 }
             }
             let warnings = own
@@ -724,8 +829,8 @@ fn packed_layout(
                 })
                 .collect();
             return Ok(Assembly {
-                width: packing.width,
-                height: packing.height,
+                pages: pages.iter().map(|(p, _)| (p.width, p.height)).collect(),
+                atlas,
                 texel_size: texel,
                 reductions,
                 charts,
@@ -734,13 +839,104 @@ fn packed_layout(
                 warnings,
             });
         }
-        texel *= coarser(&sizes, max);
+        texel *= if options.max_atlases > 1 {
+            // Several atlases did not do: a step at a time.
+            1.25
+        } else {
+            coarser(&sizes, max)
+        };
         reductions += 1;
-        if sizes.len() as u64 * 64 > u64::from(max) * u64::from(max) {
+        let room = u64::from(max) * u64::from(max) * u64::from(options.max_atlases.max(1));
+        if sizes.len() as u64 * 64 > room {
             return Err(LightmapError::TooLarge { max });
         }
     }
     Err(LightmapError::TooLarge { max })
+}
+
+/// `items` split into at most `most` atlases of at most `max` texels a side, whole primitives
+/// per atlas (items that hold polygons of one primitive instance stay together: the output
+/// draws a primitive with one lightmap): largest first into the first atlas with room
+/// (70% of its area), then each atlas packed, halved while it does not fit. Per atlas its
+/// packing and its items (in the order packed); `None` when a primitive alone does not fit
+/// or more atlases would be needed.
+fn atlases(
+    items: &[Item],
+    polygons: &[Polygon],
+    max: u32,
+    most: usize,
+) -> Option<Vec<(pack::Packing, Vec<usize>)>> {
+    use std::collections::{BTreeMap, VecDeque};
+    // Items joined through the primitives they hold.
+    let mut parent: Vec<usize> = (0..items.len()).collect();
+    fn root(parent: &mut [usize], mut k: usize) -> usize {
+        while parent[k] != k {
+            parent[k] = parent[parent[k]];
+            k = parent[k];
+        }
+        k
+    }
+    let mut first: BTreeMap<(usize, usize, usize), usize> = BTreeMap::new();
+    for (i, item) in items.iter().enumerate() {
+        for (p, _) in &item.charts {
+            let o = polygons[*p].origin;
+            let other = *first.entry((o.node, o.mesh, o.primitive)).or_insert(i);
+            let (a, b) = (root(&mut parent, i), root(&mut parent, other));
+            if a != b {
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let mut units: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    for i in 0..items.len() {
+        units.entry(root(&mut parent, i)).or_default().push(i);
+    }
+    let area = |i: &usize| f64::from(items[*i].width) * f64::from(items[*i].height);
+    let mut units: Vec<(f64, Vec<usize>)> = units
+        .into_values()
+        .map(|u| (u.iter().map(area).sum(), u))
+        .collect();
+    units.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1[0].cmp(&b.1[0])));
+    let budget = 0.7 * f64::from(max) * f64::from(max);
+    let mut bins: Vec<(f64, Vec<usize>)> = Vec::new();
+    for (a, members) in units {
+        match bins.iter_mut().find(|b| b.0 + a <= budget) {
+            Some(bin) => {
+                bin.0 += a;
+                bin.1.extend(members);
+            }
+            None => bins.push((a, members)),
+        }
+        if bins.len() > most {
+            return None;
+        }
+    }
+    // Pack each atlas; one that does not fit is split in two (whole units: the items of a
+    // unit are contiguous in its list).
+    let mut queue: VecDeque<Vec<usize>> = bins.into_iter().map(|b| b.1).collect();
+    let mut done = Vec::new();
+    while let Some(members) = queue.pop_front() {
+        let sizes: Vec<(u32, u32)> = members
+            .iter()
+            .map(|&i| (items[i].width, items[i].height))
+            .collect();
+        if let Some(packing) = pack::pack_skyline(&sizes, max) {
+            done.push((packing, members));
+            continue;
+        }
+        // Split between units, near the middle.
+        let roots: Vec<usize> = members.iter().map(|&i| root(&mut parent, i)).collect();
+        let middle = members.len() / 2;
+        let cut = (1..members.len())
+            .filter(|&k| roots[k] != roots[k - 1])
+            .min_by_key(|&k| k.abs_diff(middle))?;
+        queue.push_back(members[..cut].to_vec());
+        queue.push_back(members[cut..].to_vec());
+        if done.len() + queue.len() > most {
+            return None;
+        }
+    }
+    Some(done)
 }
 
 fn fields(polygons: &[Polygon], mesh: &ElementMesh) -> Result<Vec<Field>, LightmapError> {
@@ -848,11 +1044,40 @@ pub(crate) fn polygon_area(p: &Polygon) -> f64 {
 impl Lightmap {
     /// `TEXCOORD_1` of vertex `vertex` of polygon `polygon` (u right, v down, in [0, 1]).
     pub fn texcoord(&self, polygon: usize, vertex: usize) -> [f32; 2] {
-        let p = self.charts[polygon].uv[vertex];
+        let chart = &self.charts[polygon];
+        let p = chart.uv[vertex];
+        let atlas = self.atlas(chart.atlas as usize);
         [
-            (p[0] / f64::from(self.width)) as f32,
-            (p[1] / f64::from(self.height)) as f32,
+            (p[0] / f64::from(atlas.width)) as f32,
+            (p[1] / f64::from(atlas.height)) as f32,
         ]
+    }
+
+    /// Atlas `k` (0: the lightmap's own texels; then [`Lightmap::more`]). Panics past the
+    /// last: `k` comes from a [`Chart::atlas`].
+    pub fn atlas(&self, k: usize) -> AtlasRef<'_> {
+        match k.checked_sub(1) {
+            None => AtlasRef {
+                width: self.width,
+                height: self.height,
+                texels: &self.texels,
+                coverage: &self.coverage,
+            },
+            Some(m) => {
+                let a = &self.more[m];
+                AtlasRef {
+                    width: a.width,
+                    height: a.height,
+                    texels: &a.texels,
+                    coverage: &a.coverage,
+                }
+            }
+        }
+    }
+
+    /// Every atlas, the first one first.
+    pub fn atlases(&self) -> Vec<AtlasRef<'_>> {
+        (0..=self.more.len()).map(|k| self.atlas(k)).collect()
     }
 
     /// Bilinear sample at texture coordinate `uv` (texel centres at (i + ½)/width, clamped to
@@ -1022,6 +1247,7 @@ mod tests {
             texel_size: 0.02,
             max_size: 1024,
             shading: Shading::Smooth,
+            max_atlases: 1,
         };
         let lightmap = build(&polygons, &mesh, &values, &options).expect("build");
         assert_eq!(lightmap.charts[0].region, lightmap.charts[1].region);

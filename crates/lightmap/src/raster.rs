@@ -194,6 +194,9 @@ pub(crate) fn atlas_texels(
     let (n, rows) = (width as usize, height as usize);
     let mut claim: Vec<(f64, u32)> = vec![(f64::INFINITY, u32::MAX); n * rows];
     for (p, uv) in charts.iter().enumerate() {
+        if uv.is_empty() {
+            continue; // in another atlas
+        }
         let (lo, hi) = uv.iter().fold(
             (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
             |(lo, hi), q| (lo.min(*q), hi.max(*q)),
