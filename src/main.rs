@@ -208,8 +208,9 @@ pub struct Cli {
     /// (refused when it leaves [0, 1], overlaps — two primitives or instances share texels, or
     /// a double-sided face's sides would — or a material samples it as a texture set);
     /// `generate`: one chart per polygon, packed; `auto`: `keep` when the whole scene's
-    /// TEXCOORD_1 is usable, else `generate` (the report's options.lightmap_layout says why,
-    /// per primitive).
+    /// TEXCOORD_1 is usable, else per primitive: one whose own TEXCOORD_1 is usable keeps it
+    /// in an atlas region of its own (scaled and moved), the others are generated (the
+    /// report's options.lightmap_layout says which and why, per primitive).
     #[arg(long, value_enum, default_value_t = LightmapUv::Auto)]
     pub lightmap_uv: LightmapUv,
 

@@ -426,10 +426,18 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             } else {
                 format!("{} charts", built.stats.charts)
             };
+            let sizes: Vec<String> = built
+                .atlases()
+                .iter()
+                .map(|a| format!("{}×{}", a.width, a.height))
+                .collect();
+            let atlases = match sizes.len() {
+                1 => String::new(),
+                n => format!("{n} atlases "),
+            };
             hardness += &format!(
-                ", lightmap {}×{} (texel {:.6}, {:.1}% occupied, {layout})",
-                built.width,
-                built.height,
+                ", lightmap {atlases}{} (texel {:.6}, {:.1}% occupied, {layout})",
+                sizes.join(" + "),
                 built.texel_size,
                 100.0 * built.stats.occupancy
             );

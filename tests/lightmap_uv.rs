@@ -873,6 +873,27 @@ fn charts_that_need_several_atlases_get_them() {
     );
     let (_, one) = run("1", "one");
     assert!(one.stderr.contains("texel size raised"), "{}", one.stderr);
+    // A .glb embeds every atlas's PNG; the EXRs lie beside it.
+    let glb = d.join("both.glb");
+    bake([
+        input.as_os_str(),
+        glb.as_os_str(),
+        "--lightmap-texel".as_ref(),
+        "0.025".as_ref(),
+        "--lightmap-max".as_ref(),
+        "128".as_ref(),
+    ])
+    .success();
+    let side = d.join("both.lightmap.glb");
+    let (document, _, images) = gltf::import(&side).expect("re-read the .glb");
+    assert_eq!((document.images().count(), images.len()), (2, 2));
+    for name in ["both.lightmap.exr", "both.lightmap-1.exr"] {
+        assert!(d.join(name).is_file(), "{name}");
+    }
+    assert!(!d.join("both.lightmap.png").exists());
+    if let Some(summary) = validate_clean(&[glb.clone(), side.clone()]) {
+        eprintln!("{summary}");
+    }
 
     let (scene, baked, irradiance) = bake_in_process(&input);
     let map = flat_lightmap(&scene, &baked, &irradiance, (0.025, 128, 16), Auto);
