@@ -232,6 +232,26 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         Some(built)
     };
 
+    // Several atlases add files the check before the bake could not know of: they too must
+    // not be an input or another output.
+    let mut planned = planned;
+    if let Some(built) = lightmap.as_ref().filter(|b| !b.more.is_empty()) {
+        let paths = lightmap_paths(cli).map_err(internal)?;
+        let with_png = paths
+            .files()
+            .map_err(|e| internal(anyhow!(e)))?
+            .contains(&paths.png);
+        for k in 1..=built.more.len() {
+            planned.push(paths.atlas_exr(k).map_err(|e| internal(anyhow!(e)))?);
+            if with_png {
+                planned.push(paths.atlas_png(k).map_err(|e| internal(anyhow!(e)))?);
+            }
+        }
+        let mut all_inputs = inputs.clone();
+        all_inputs.extend(scene.input_files.iter().cloned());
+        exporter::check_distinct(&planned, &all_inputs).map_err(same_file)?;
+    }
+
     // 6. Export.
     let shading = match cli.shading {
         Shading::Smooth => exporter::Shading::Smooth,

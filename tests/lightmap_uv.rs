@@ -873,6 +873,38 @@ fn charts_that_need_several_atlases_get_them() {
     );
     let (_, one) = run("1", "one");
     assert!(one.stderr.contains("texel size raised"), "{}", one.stderr);
+    // An input texture where the second atlas's PNG would go: refused (exit 2), untouched.
+    let mut textured = doc.clone();
+    textured["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = json!({ "index": 0 });
+    textured["textures"] = json!([{ "source": 0 }]);
+    textured["images"] = json!([{ "uri": "clash.lightmap-1.png" }]);
+    let png = image::RgbImage::from_pixel(2, 2, image::Rgb([200, 200, 200]));
+    png.save(d.join("clash.lightmap-1.png"))
+        .expect("write the texture");
+    let before = std::fs::read(d.join("clash.lightmap-1.png")).expect("read");
+    let clash_in = d.join("clash-in.gltf");
+    write_json(&clash_in, &textured);
+    let refused = bake([
+        clash_in.as_os_str(),
+        d.join("clash.gltf").as_os_str(),
+        "--target".as_ref(),
+        "lightmap".as_ref(),
+        "--lightmap-texel".as_ref(),
+        "0.025".as_ref(),
+        "--lightmap-max".as_ref(),
+        "128".as_ref(),
+    ]);
+    assert_eq!(refused.code, Some(2), "{refused:#?}");
+    assert!(
+        refused.stderr.contains("overwrite an input"),
+        "{}",
+        refused.stderr
+    );
+    assert_eq!(
+        std::fs::read(d.join("clash.lightmap-1.png")).expect("read"),
+        before
+    );
+
     // A .glb embeds every atlas's PNG; the EXRs lie beside it.
     let glb = d.join("both.glb");
     bake([
