@@ -932,6 +932,19 @@ fn charts_that_need_several_atlases_get_them() {
     let atlases = map.atlases();
     assert_eq!(atlases.len(), 2, "{:?}", map.stats);
     assert_eq!((map.stats.reductions, map.texel_size), (0, 0.025));
+    // At 80 texels per metre one primitive alone (≈ 200 × 92 texels) exceeds 128: the texel
+    // size grows, to just what fits, and the atlases stay within 128.
+    let fine = flat_lightmap(&scene, &baked, &irradiance, (0.0125, 128, 16), Auto);
+    assert!(fine.stats.reductions > 0, "{:?}", fine.stats);
+    assert!(
+        fine.texel_size > 0.0125 && fine.texel_size < 0.0125 * 1.7,
+        "{}",
+        fine.texel_size
+    );
+    assert!(fine
+        .atlases()
+        .iter()
+        .all(|a| a.width <= 128 && a.height <= 128));
     // Generated charts (one per polygon) split the same way.
     let generated = flat_lightmap(&scene, &baked, &irradiance, (0.025, 128, 16), Generate);
     assert!(generated.atlases().len() >= 2, "{:?}", generated.stats);

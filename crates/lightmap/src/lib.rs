@@ -781,13 +781,13 @@ fn packed_layout(
         }
         let sizes: Vec<(u32, u32)> = items.iter().map(|r| (r.width, r.height)).collect();
         let pages = match pack::pack_skyline(&sizes, max) {
-            Some(packing) => Some(vec![(packing, (0..items.len()).collect())]),
+            Some(packing) => Ok(vec![(packing, (0..items.len()).collect())]),
             None if options.max_atlases > 1 => {
                 atlases(&items, polygons, max, options.max_atlases as usize)
             }
-            None => None,
+            None => Err(coarser(&sizes, max)),
         };
-        if let Some(pages) = pages {
+        if let Ok(pages) = &pages {
             let mut charts = vec![Vec::new(); polygons.len()];
             let mut atlas = vec![0; polygons.len()];
             let mut regions = vec![
@@ -839,12 +839,7 @@ fn packed_layout(
                 warnings,
             });
         }
-        texel *= if options.max_atlases > 1 {
-            // Several atlases did not do: a step at a time.
-            1.25
-        } else {
-            coarser(&sizes, max)
-        };
+        texel *= pages.err().unwrap_or(1.05);
         reductions += 1;
         let room = u64::from(max) * u64::from(max) * u64::from(options.max_atlases.max(1));
         if sizes.len() as u64 * 64 > room {
@@ -858,14 +853,15 @@ fn packed_layout(
 /// per atlas (items that hold polygons of one primitive instance stay together: the output
 /// draws a primitive with one lightmap): largest first into the first atlas with room
 /// (70% of its area), then each atlas packed, halved while it does not fit. Per atlas its
-/// packing and its items (in the order packed); `None` when a primitive alone does not fit
-/// or more atlases would be needed.
+/// packing and its items (in the order packed); when a primitive alone does not fit or more
+/// atlases would be needed, how much coarser the texels should get ([`coarser`] of the
+/// primitive that did not fit, or of the whole area over `most` atlases).
 fn atlases(
     items: &[Item],
     polygons: &[Polygon],
     max: u32,
     most: usize,
-) -> Option<Vec<(pack::Packing, Vec<usize>)>> {
+) -> Result<Vec<(pack::Packing, Vec<usize>)>, f64> {
     use std::collections::{BTreeMap, VecDeque};
     // Items joined through the primitives they hold.
     let mut parent: Vec<usize> = (0..items.len()).collect();
@@ -908,7 +904,7 @@ fn atlases(
             None => bins.push((a, members)),
         }
         if bins.len() > most {
-            return None;
+            return Err(too_many(items, max, most));
         }
     }
     // Pack each atlas; one that does not fit is split in two (whole units: the items of a
@@ -927,16 +923,30 @@ fn atlases(
         // Split between units, near the middle.
         let roots: Vec<usize> = members.iter().map(|&i| root(&mut parent, i)).collect();
         let middle = members.len() / 2;
-        let cut = (1..members.len())
+        let Some(cut) = (1..members.len())
             .filter(|&k| roots[k] != roots[k - 1])
-            .min_by_key(|&k| k.abs_diff(middle))?;
+            .min_by_key(|&k| k.abs_diff(middle))
+        else {
+            return Err(coarser(&sizes, max)); // one primitive alone
+        };
         queue.push_back(members[..cut].to_vec());
         queue.push_back(members[cut..].to_vec());
         if done.len() + queue.len() > most {
-            return None;
+            return Err(too_many(items, max, most));
         }
     }
-    Some(done)
+    Ok(done)
+}
+
+/// How much coarser texels must get for `items` to fill at most `most` atlases of `max`
+/// texels a side at 70%: by area, at least 5%, at most 4×.
+fn too_many(items: &[Item], max: u32, most: usize) -> f64 {
+    let area: f64 = items
+        .iter()
+        .map(|r| f64::from(r.width) * f64::from(r.height))
+        .sum();
+    let room = 0.7 * f64::from(max) * f64::from(max) * most as f64;
+    (area / room).sqrt().clamp(1.05, 4.0)
 }
 
 fn fields(polygons: &[Polygon], mesh: &ElementMesh) -> Result<Vec<Field>, LightmapError> {
