@@ -205,8 +205,9 @@ pub struct Cli {
           value_parser = clap::value_parser!(u32).range(1..=256))]
     pub lightmap_atlases: u32,
     /// Where the lightmap's charts come from. `keep`: the input's TEXCOORD_1 as authored
-    /// (refused when it leaves [0, 1], overlaps — two primitives or instances share texels, or
-    /// a double-sided face's sides would — or a material samples it as a texture set);
+    /// (refused when it leaves [0, 1], overlaps within a primitive — or a double-sided face's
+    /// sides would share texels — or a material samples it as a texture set; primitives that
+    /// overlap each other get an atlas each);
     /// `generate`: one chart per polygon, packed; `auto`: `keep` when the whole scene's
     /// TEXCOORD_1 is usable, else per primitive: one whose own TEXCOORD_1 is usable keeps it
     /// in an atlas region of its own (scaled and moved), the others are generated (the

@@ -707,7 +707,9 @@ fn primitives_scene(squares: &[(Square, Square)]) -> Value {
 /// [0, 1] (as Blender's per-object UV maps do) overlap each other, so the whole layout cannot
 /// be kept, but each keeps its own in its own atlas region — its output TEXCOORD_1 is the
 /// input's under one scale (the same in texels along u and v) and a shift; a third primitive
-/// whose TEXCOORD_1 overlaps itself gets generated charts. `keep` still refuses the scene. The
+/// whose TEXCOORD_1 overlaps itself gets generated charts. `keep` refuses the scene for that
+/// third one; for the first two alone it gives each an atlas of its own, TEXCOORD_1
+/// unchanged. The
 /// texels (`--shading flat`) at element centroids, sampled through the written TEXCOORD_1,
 /// are the elements' H; the output is validator clean.
 #[test]
@@ -717,13 +719,60 @@ fn auto_keeps_each_usable_primitive_in_its_own_region() {
     let good = (([0.0625, 0.0625], 0.375), ([0.5625, 0.0625], 0.375));
     let folded = (([0.0625, 0.0625], 0.375), ([0.25, 0.25], 0.375));
     let doc = primitives_scene(&[good, good, folded]);
+    // `keep` refuses the primitive that overlaps itself, naming it.
     let (run, _) = bake_uv(d, "keep", &doc, "keep");
     assert_eq!(run.code, Some(1), "{run:#?}");
     assert!(
-        run.stderr.contains("one atlas holds one layout"),
+        run.stderr.contains("node 2 mesh 2 primitive 0") && run.stderr.contains("overlaps itself"),
         "{}",
         run.stderr
     );
+    // Without it, `keep` gives each primitive an atlas of its own, its TEXCOORD_1 unchanged
+    // (every output vertex's is the input's there, within f32 rounding).
+    let pair = primitives_scene(&[good, good]);
+    let (run, layout) = bake_uv(d, "exact", &pair, "keep");
+    run.success();
+    for k in 0..2 {
+        assert_eq!(layout[k]["uv"], "kept", "{layout}");
+        assert_eq!(layout[k]["own_region"], false, "{layout}");
+    }
+    let (inputs, outputs) = (
+        triangles_by_node(&d.join("exact.gltf"), 1),
+        triangles_by_node(&d.join("exact-out.gltf"), 1),
+    );
+    for (name, tris) in &outputs {
+        for (p, t) in tris {
+            for k in 0..3 {
+                let want = uv_at(&inputs[name], p[k]).expect("an input triangle there");
+                assert!(
+                    (want - t[k]).abs().max_element() <= f64::from(f32::EPSILON),
+                    "{name}: {} vs the input's {want}",
+                    t[k]
+                );
+            }
+        }
+    }
+    let (document, _, images) = gltf::import(d.join("exact-out.gltf")).expect("re-read");
+    assert_eq!((document.images().count(), images.len()), (2, 2));
+    // More atlases than allowed: refused before the bake.
+    let refused = bake([
+        d.join("exact.gltf").as_os_str(),
+        d.join("exact-one.gltf").as_os_str(),
+        "--lightmap-uv".as_ref(),
+        "keep".as_ref(),
+        "--lightmap-atlases".as_ref(),
+        "1".as_ref(),
+    ]);
+    assert_eq!(refused.code, Some(1), "{refused:#?}");
+    assert!(
+        refused.stderr.contains("more than --lightmap-atlases 1"),
+        "{}",
+        refused.stderr
+    );
+    assert!(!d.join("exact-one.gltf").exists());
+    if let Some(summary) = validate_clean(&[d.join("exact-out.gltf")]) {
+        eprintln!("{summary}");
+    }
 
     let input = d.join("mixed.gltf");
     write_json(&input, &doc);

@@ -45,7 +45,7 @@ mod group;
 mod pack;
 mod raster;
 
-pub use authored::{AuthoredUv, UvDecision, UvMode, MIN_PADDING, OWN_REGION};
+pub use authored::{AuthoredUv, UvDecision, UvMode, MIN_PADDING, OWN_ATLAS, OWN_REGION};
 pub use chart::{PADDING, PAIR_GAP};
 pub use encode::{
     encode_exr, encode_exr_atlas, encode_png, encode_png_atlas, linear_to_srgb, srgb_to_linear,
@@ -271,14 +271,28 @@ pub fn plan_uv(
     mode: UvMode,
     options: &Options,
 ) -> Result<Vec<UvDecision>, LightmapError> {
-    Ok(authored::plan(
+    let plan = authored::plan(
         polygons,
         authored,
         mode,
         options.texel_size,
         options.max_size,
-    )?
-    .decisions)
+    )?;
+    if plan.exact {
+        too_many_exact(plan.own.len(), options)?;
+    }
+    Ok(plan.decisions)
+}
+
+/// `keep` with an atlas per primitive: refused past `Options::max_atlases`.
+fn too_many_exact(primitives: usize, options: &Options) -> Result<(), LightmapError> {
+    if primitives > options.max_atlases as usize {
+        return Err(LightmapError::AuthoredUv(format!(
+            "{primitives} primitives' TEXCOORD_1 overlap each other: keeping each needs an atlas of its own, more than --lightmap-atlases {}",
+            options.max_atlases
+        )));
+    }
+    Ok(())
 }
 
 /// [`build`] with the input's authored `TEXCOORD_1` (`AuthoredUv::from_scene`) as the
@@ -349,7 +363,9 @@ pub fn build_with(
             plan.decisions,
         ));
     }
-    let layout = if !plan.own.is_empty() {
+    let layout = if plan.exact {
+        Some(exact_layout(polygons, &plan.own, options)?)
+    } else if !plan.own.is_empty() {
         Some(mixed_layout(polygons, &plan.own, options)?)
     } else {
         // Grouped charts where they group: at least two polygons per chart on average, or
@@ -485,26 +501,7 @@ fn kept_lightmap(
     uv_decisions: Vec<UvDecision>,
 ) -> Lightmap {
     let side = kept.side;
-    let regions = kept
-        .charts
-        .iter()
-        .map(|uv| {
-            let (lo, hi) = uv.iter().fold(
-                (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
-                |(lo, hi), q| (lo.min(*q), hi.max(*q)),
-            );
-            let x = lo.x.floor().max(0.0) as u32;
-            let y = lo.y.floor().max(0.0) as u32;
-            let right = (hi.x.ceil().max(0.0) as u32).clamp(x, side);
-            let bottom = (hi.y.ceil().max(0.0) as u32).clamp(y, side);
-            Rect {
-                x,
-                y,
-                width: right - x,
-                height: bottom - y,
-            }
-        })
-        .collect();
+    let regions = kept.charts.iter().map(|uv| texel_box(uv, side)).collect();
     let warnings = kept
         .padding
         .map(|gap| {
@@ -533,6 +530,78 @@ fn kept_lightmap(
         welded_vertices,
         uv_decisions,
     )
+}
+
+/// The bounding box in whole texels of a texel-space chart, inside a `side` atlas.
+fn texel_box(uv: &[DVec2], side: u32) -> Rect {
+    let (lo, hi) = uv.iter().fold(
+        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+        |(lo, hi), q| (lo.min(*q), hi.max(*q)),
+    );
+    let x = (lo.x.floor().max(0.0) as u32).min(side);
+    let y = (lo.y.floor().max(0.0) as u32).min(side);
+    let right = (hi.x.ceil().max(0.0) as u32).clamp(x, side);
+    let bottom = (hi.y.ceil().max(0.0) as u32).clamp(y, side);
+    Rect {
+        x,
+        y,
+        width: right - x,
+        height: bottom - y,
+    }
+}
+
+/// `--lightmap-uv keep` when primitives' TEXCOORD_1 overlap each other but each one's is
+/// usable: an atlas per primitive, square, its side from the texel size over the
+/// primitive's UV area (as for a whole kept layout), TEXCOORD_1 unchanged. The lightmap's
+/// texel size is the coarsest atlas's.
+fn exact_layout(
+    polygons: &[Polygon],
+    own: &[authored::Own],
+    options: &Options,
+) -> Result<Assembly, LightmapError> {
+    too_many_exact(own.len(), options)?;
+    let max = options.max_size;
+    let n = polygons.len();
+    let mut charts = vec![Vec::new(); n];
+    let mut regions = vec![texel_box(&[], 0); n];
+    let mut atlas = vec![0; n];
+    let (mut pages, mut warnings) = (Vec::new(), Vec::new());
+    let (mut texel, mut reductions) = (0.0f64, 0);
+    for (k, o) in own.iter().enumerate() {
+        let (side, used, reduced) =
+            authored::square_side(o.world_per_uv.sqrt(), options.texel_size, max);
+        reductions += u32::from(reduced);
+        texel = texel.max(used);
+        let s = f64::from(side);
+        for (&p, t) in o.polygons.iter().zip(&o.uv) {
+            charts[p] = t.iter().map(|q| *q * s).collect();
+            regions[p] = texel_box(&charts[p], side);
+            atlas[p] = k as u32;
+        }
+        let uv: Vec<&[DVec2]> = o.uv.iter().map(Vec::as_slice).collect();
+        if let Some(gap) = authored::check_layout(&uv, Some(s)).padding {
+            warnings.push(format!(
+                "{}: its TEXCOORD_1 islands are {gap:.2} texels apart at {side}×{side} (under {MIN_PADDING}): filtering mixes their light",
+                o.label
+            ));
+        }
+        pages.push((side, side));
+    }
+    if let Some(p) = charts.iter().position(Vec::is_empty) {
+        return Err(LightmapError::InvalidData(format!(
+            "polygon {p} is in no kept primitive"
+        )));
+    }
+    Ok(Assembly {
+        pages,
+        atlas,
+        texel_size: texel,
+        reductions,
+        charts,
+        regions,
+        chart_count: 0,
+        warnings,
+    })
 }
 
 /// An atlas laid out by per-polygon texel-space charts, before its texels are made.
