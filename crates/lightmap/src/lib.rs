@@ -8,7 +8,9 @@
 //! charts are projected), splitting one primitive across atlases (a primitive too large for
 //! one atlas makes the texels coarser), alpha cut-outs.
 //!
-//! Public API: [`build`] with [`Options`] → [`Lightmap`]; [`encode_exr`], [`encode_png`].
+//! Public API: [`build`] / [`build_with`] with [`Options`] → [`Lightmap`] (its atlases:
+//! [`Lightmap::atlases`], each chart's [`Chart::atlas`]); [`encode_exr`], [`encode_png`]
+//! (the first atlas), [`encode_exr_atlas`], [`encode_png_atlas`] (any).
 //!
 //! What a texel holds: the **irradiance** H, the light arriving at the surface, in the bake's
 //! intensity units (those of emission e and radiosity b), so that `b = e + ρ H`. Engines
