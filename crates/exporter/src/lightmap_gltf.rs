@@ -1,7 +1,8 @@
 //! Writes the lightmap bake: the input's polygons (not subdivided) in each node's local space
-//! with lit materials rebuilt from the input's, `TEXCOORD_1` into one lightmap atlas wired
-//! with `MOZ_lightmap` (what three.js-based viewers such as Hubs read), the atlas as an 8-bit
-//! sRGB PNG and as a linear float EXR. Every file is written atomically; the glTF last.
+//! with lit materials rebuilt from the input's, `TEXCOORD_1` into the primitive's lightmap
+//! atlas wired with `MOZ_lightmap` (what three.js-based viewers such as Hubs read), each atlas
+//! as an 8-bit sRGB PNG and as a linear float EXR (several atlases: one material per input
+//! material and atlas). Every file is written atomically; the glTF last.
 //!
 //! Layout of each output primitive: the polygons of one input primitive instance, in the
 //! importer's polygon order, each with its own 3 or 4 vertices (in the polygon's vertex
