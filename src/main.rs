@@ -79,9 +79,9 @@ pub struct Cli {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     pub max_iterations: Option<u32>,
 
-    /// Vertex values: `smooth` averages neighbouring elements (area-weighted, the paper's
-    /// linear smoothing, Figure 8); `flat` exports every element with its own constant value
-    /// (Figure 6).
+    /// Vertex values and lightmap texels: `smooth` averages neighbouring elements
+    /// (area-weighted, the paper's linear smoothing, Figure 8); `flat` exports every element
+    /// with its own constant value (Figure 6), and every lightmap texel with its element's H.
     #[arg(long, value_enum, default_value_t = Shading::Smooth)]
     pub shading: Shading,
     /// Multiply radiosity by X before clamping to [0, 1] for COLOR_0 (the unclamped value
@@ -190,19 +190,28 @@ pub struct Cli {
     #[arg(long, value_enum, default_value_t = Target::Both)]
     pub target: Target,
     /// Lightmap texel size in world units (default: the scene's bounding-box diagonal / 256).
-    /// Made coarser automatically when the atlas would be larger than --lightmap-max.
+    /// Made coarser automatically when the atlases would be larger than --lightmap-max
+    /// (after --lightmap-atlases atlases).
     #[arg(long, value_name = "L", allow_negative_numbers = true)]
     pub lightmap_texel: Option<f64>,
     /// Largest lightmap atlas side, in texels.
     #[arg(long, value_name = "N", default_value_t = lightmap::DEFAULT_MAX_SIZE,
           value_parser = clap::value_parser!(u32).range(16..=16384))]
     pub lightmap_max: u32,
+    /// Most lightmap atlases: when the charts at the texel size do not fit one
+    /// --lightmap-max atlas, whole primitives are packed into several (each its own PNG and
+    /// EXR) before the texel size is made coarser; 1 keeps one atlas.
+    #[arg(long, value_name = "N", default_value_t = lightmap::DEFAULT_MAX_ATLASES,
+          value_parser = clap::value_parser!(u32).range(1..=256))]
+    pub lightmap_atlases: u32,
     /// Where the lightmap's charts come from. `keep`: the input's TEXCOORD_1 as authored
-    /// (refused when it leaves [0, 1], overlaps — two primitives or instances share texels, or
-    /// a double-sided face's sides would — or a material samples it as a texture set);
+    /// (refused when it leaves [0, 1], overlaps within a primitive — or a double-sided face's
+    /// sides would share texels — or a material samples it as a texture set; primitives that
+    /// overlap each other get an atlas each);
     /// `generate`: one chart per polygon, packed; `auto`: `keep` when the whole scene's
-    /// TEXCOORD_1 is usable, else `generate` (the report's options.lightmap_layout says why,
-    /// per primitive).
+    /// TEXCOORD_1 is usable, else per primitive: one whose own TEXCOORD_1 is usable keeps it
+    /// in an atlas region of its own (scaled and moved), the others are generated (the
+    /// report's options.lightmap_layout says which and why, per primitive).
     #[arg(long, value_enum, default_value_t = LightmapUv::Auto)]
     pub lightmap_uv: LightmapUv,
 

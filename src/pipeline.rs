@@ -132,6 +132,8 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
                 .lightmap_texel
                 .unwrap_or_else(|| lightmap::default_texel_size(&scene.polygons)),
             max_size: cli.lightmap_max,
+            shading: lightmap_shading(cli.shading),
+            max_atlases: cli.lightmap_atlases,
         };
         lightmap::plan_uv(
             &scene.polygons,
@@ -200,6 +202,8 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
                 .lightmap_texel
                 .unwrap_or_else(|| lightmap::default_texel_size(&scene.polygons)),
             max_size: cli.lightmap_max,
+            shading: lightmap_shading(cli.shading),
+            max_atlases: cli.lightmap_atlases,
         };
         bake_core::Progress::start(&bars, "lightmap", 0);
         let built = lightmap::build_with(
@@ -227,6 +231,26 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
         stage("lightmap", &mut lap);
         Some(built)
     };
+
+    // Several atlases add files the check before the bake could not know of: they too must
+    // not be an input or another output.
+    let mut planned = planned;
+    if let Some(built) = lightmap.as_ref().filter(|b| !b.more.is_empty()) {
+        let paths = lightmap_paths(cli).map_err(internal)?;
+        let with_png = paths
+            .files()
+            .map_err(|e| internal(anyhow!(e)))?
+            .contains(&paths.png);
+        for k in 1..=built.more.len() {
+            planned.push(paths.atlas_exr(k).map_err(|e| internal(anyhow!(e)))?);
+            if with_png {
+                planned.push(paths.atlas_png(k).map_err(|e| internal(anyhow!(e)))?);
+            }
+        }
+        let mut all_inputs = inputs.clone();
+        all_inputs.extend(scene.input_files.iter().cloned());
+        exporter::check_distinct(&planned, &all_inputs).map_err(same_file)?;
+    }
 
     // 6. Export.
     let shading = match cli.shading {
@@ -411,15 +435,29 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             Exposure::Value(_) => {}
         }
         if let Some(built) = &lightmap {
-            let layout = if built.uv_decisions.iter().all(|d| d.kept) {
+            let own = built.uv_decisions.iter().filter(|d| d.own_region).count();
+            let layout = if built.uv_decisions.iter().all(|d| d.kept && !d.own_region) {
                 "the input's TEXCOORD_1".to_string()
+            } else if own > 0 {
+                format!(
+                    "{} charts + {own} primitives' own TEXCOORD_1",
+                    built.stats.charts
+                )
             } else {
                 format!("{} charts", built.stats.charts)
             };
+            let sizes: Vec<String> = built
+                .atlases()
+                .iter()
+                .map(|a| format!("{}×{}", a.width, a.height))
+                .collect();
+            let atlases = match sizes.len() {
+                1 => String::new(),
+                n => format!("{n} atlases "),
+            };
             hardness += &format!(
-                ", lightmap {}×{} (texel {:.6}, {:.1}% occupied, {layout})",
-                built.width,
-                built.height,
+                ", lightmap {atlases}{} (texel {:.6}, {:.1}% occupied, {layout})",
+                sizes.join(" + "),
                 built.texel_size,
                 100.0 * built.stats.occupancy
             );
@@ -548,6 +586,14 @@ fn options_json(
     options
 }
 
+/// `--shading` for the lightmap's texels (each element's own H with `flat`).
+fn lightmap_shading(shading: Shading) -> lightmap::Shading {
+    match shading {
+        Shading::Smooth => lightmap::Shading::Smooth,
+        Shading::Flat => lightmap::Shading::Flat,
+    }
+}
+
 /// The report's `options.lightmap_layout`: per primitive instance, whether the input's
 /// TEXCOORD_1 was kept as the lightmap layout, and if not why.
 fn lightmap_layout(built: &lightmap::Lightmap) -> serde_json::Value {
@@ -562,6 +608,7 @@ fn lightmap_layout(built: &lightmap::Lightmap) -> serde_json::Value {
                 "polygons": d.polygons,
                 "uv": if d.kept { "kept" } else { "generated" },
                 "reason": d.reason,
+                "own_region": d.own_region,
             })
         })
         .collect();

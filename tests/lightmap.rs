@@ -190,6 +190,8 @@ fn build(solved: &Solved, texel: Option<f64>) -> Lightmap {
     let options = lightmap::Options {
         texel_size: texel.unwrap_or_else(|| lightmap::default_texel_size(&solved.scene.polygons)),
         max_size: lightmap::DEFAULT_MAX_SIZE,
+        shading: lightmap::Shading::Smooth,
+        max_atlases: lightmap::DEFAULT_MAX_ATLASES,
     };
     lightmap::build(&solved.scene.polygons, &solved.mesh, &solved.h, &options)
         .expect("build the lightmap")
@@ -354,29 +356,43 @@ fn cases(dir: &Path) -> Vec<Case> {
     ]
 }
 
+/// `bake --target lightmap --shading SHADING` of the case: its EXR, checked equal to
+/// `lightmap` (the same build in-process), and every polygon's TEXCOORD_1.
+fn bake_lightmap(
+    case: &Case,
+    solved: &Solved,
+    lightmap: &Lightmap,
+    dir: &Path,
+    shading: &str,
+) -> (Rgb, Vec<Vec<[f64; 2]>>) {
+    let out = dir.join(format!("{shading}.gltf"));
+    bake([
+        "--quiet".as_ref(),
+        "--target".as_ref(),
+        "lightmap".as_ref(),
+        "--shading".as_ref(),
+        shading.as_ref(),
+        case.input.as_os_str(),
+        out.as_os_str(),
+    ])
+    .success();
+    let exr = read_exr_with_exr(&dir.join(format!("{shading}.lightmap.exr")));
+    assert_eq!((exr.width, exr.height), (lightmap.width, lightmap.height));
+    assert!(
+        exr.texels == lightmap.texels,
+        "{}: the CLI's texels",
+        case.name
+    );
+    (exr, read_texcoords(&out, &solved.scene).1)
+}
+
 #[test]
 fn element_centroids_sample_the_smoothed_irradiance_within_one_percent() {
     let dir = tempfile::tempdir().expect("a temporary directory");
     for case in cases(dir.path()) {
         let solved = solve(&case.input);
         let lightmap = build(&solved, None);
-        let out = dir.path().join("out.gltf");
-        bake([
-            "--quiet".as_ref(),
-            "--target".as_ref(),
-            "lightmap".as_ref(),
-            case.input.as_os_str(),
-            out.as_os_str(),
-        ])
-        .success();
-        let exr = read_exr_with_exr(&dir.path().join("out.lightmap.exr"));
-        assert_eq!((exr.width, exr.height), (lightmap.width, lightmap.height));
-        assert!(
-            exr.texels == lightmap.texels,
-            "{}: the CLI's texels",
-            case.name
-        );
-        let (_, texcoords) = read_texcoords(&out, &solved.scene);
+        let (exr, texcoords) = bake_lightmap(&case, &solved, &lightmap, dir.path(), "smooth");
         let smoothed_h = solved.mesh.smooth(&solved.h);
         // The per-polygon smoothing before the weld, to show what the weld changes; the vertex
         // bake itself is welded (`welded_b`).
@@ -440,6 +456,49 @@ fn element_centroids_sample_the_smoothed_irradiance_within_one_percent() {
         assert!(worst_h < 0.01, "{}: {worst_h}", case.name);
         assert!(worst_b < 0.01, "{}: {worst_b}", case.name);
         assert!(worst_b_welded < 0.01, "{}: {worst_b_welded}", case.name);
+    }
+}
+
+/// `--shading flat`: every texel holds its element's own H, so bilinear sampling at an
+/// element's centroid (at least a texel inside it: elements here span ~15 texels) reads the
+/// element's H exactly, to f32 rounding (the EXR stores f32).
+#[test]
+fn flat_lightmap_texels_at_element_centroids_are_the_elements_h() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    for case in cases(dir.path()) {
+        let solved = solve(&case.input);
+        let options = lightmap::Options {
+            texel_size: lightmap::default_texel_size(&solved.scene.polygons),
+            max_size: lightmap::DEFAULT_MAX_SIZE,
+            shading: lightmap::Shading::Flat,
+            max_atlases: lightmap::DEFAULT_MAX_ATLASES,
+        };
+        let lightmap = lightmap::build(&solved.scene.polygons, &solved.mesh, &solved.h, &options)
+            .expect("build the flat lightmap");
+        let (exr, texcoords) = bake_lightmap(&case, &solved, &lightmap, dir.path(), "flat");
+        let peak = solved.h.iter().flatten().fold(0.0f64, |m, v| m.max(*v));
+        let mut worst = 0.0f64;
+        for (i, element) in solved.mesh.elements.iter().enumerate() {
+            let p = element.polygon as usize;
+            let uv = texcoord_at(&solved.scene.polygons[p], &texcoords[p], element.centroid);
+            let sampled = lightmap::sample_bilinear(&exr.texels, exr.width, exr.height, uv);
+            let at = lightmap.irradiance_at(p, element.centroid);
+            for c in 0..3 {
+                worst = worst.max(relative(sampled[c], solved.h[i][c], 1e-6 * peak));
+                assert_eq!(
+                    at[c], solved.h[i][c],
+                    "{}: irradiance_at, element {i}",
+                    case.name
+                );
+            }
+        }
+        println!(
+            "{}: {} elements, flat lightmap at centroids vs H: max {worst:.2e} relative",
+            case.name,
+            solved.mesh.elements.len()
+        );
+        // f32 rounding is 6e-8 relative; any neighbour's value would differ by far more.
+        assert!(worst <= 1.2e-7, "{}: {worst}", case.name);
     }
 }
 
@@ -624,6 +683,8 @@ fn texel_size_grows_to_fit_the_maximum_atlas() {
     let options = lightmap::Options {
         texel_size: lightmap::default_texel_size(&solved.scene.polygons) / 8.0,
         max_size: 512,
+        shading: lightmap::Shading::Smooth,
+        max_atlases: 1,
     };
     let lightmap =
         lightmap::build(&solved.scene.polygons, &solved.mesh, &solved.h, &options).expect("fits");

@@ -11,6 +11,10 @@
 //!   face's two sides), UVs outside [0, 1] and a material that samples TEXCOORD_1, each
 //!   naming the primitive and the reason, before the bake; `auto` generates charts for them
 //!   and says why; islands closer than 2 texels warn.
+//! - `auto` per primitive: two primitives whose TEXCOORD_1 overlap each other (not
+//!   themselves) each keep theirs in an atlas region of their own (output = input under one
+//!   scale and a shift, checked at every vertex), a third that overlaps itself is generated;
+//!   flat texels at element centroids are the elements' H; validator clean.
 //! - Grouped charts through the binary: a flat floor of 4 232 triangles under a point light
 //!   (one grouped chart), validator clean, and each triangle centroid away from the edge,
 //!   sampled from the written EXR through the written TEXCOORD_1, reads the closed form
@@ -20,6 +24,7 @@ mod common;
 
 use common::{bake, blender_installed, data_uri, skip, tools_dir, validate_clean, write_json};
 use glam::{DVec2, DVec3};
+use lightmap::UvMode::{Auto, Generate};
 use serde_json::{json, Value};
 use std::path::Path;
 use std::process::Command;
@@ -393,17 +398,12 @@ fn blender_lightmap_pack_is_kept_as_authored() {
     }
     // The texels under the kept layout hold the irradiance: element centroids, looked up
     // through TEXCOORD_1 and sampled, read the smoothed H within 1% (in-process bake).
-    let scene = importer::load(&room).expect("load");
-    let request = bake_core::Request {
-        irradiance: true,
-        ..bake_core::Request::default()
-    };
-    let settings = bake_core::Settings::resolve(&request, &scene.polygons).expect("settings");
-    let baked = bake_core::run(&scene, &settings, &bake_core::Silent).expect("bake");
-    let h = baked.irradiance.expect("irradiance");
+    let (scene, baked, h) = bake_in_process(&room);
     let options = lightmap::Options {
         texel_size: lightmap::default_texel_size(&scene.polygons),
         max_size: lightmap::DEFAULT_MAX_SIZE,
+        shading: lightmap::Shading::Smooth,
+        max_atlases: lightmap::DEFAULT_MAX_ATLASES,
     };
     let authored = lightmap::AuthoredUv::from_scene(&scene);
     let map = lightmap::build_with(
@@ -447,6 +447,73 @@ fn blender_lightmap_pack_is_kept_as_authored() {
     }
     assert!(checked * 2 > baked.mesh.elements.len(), "{checked} checked");
     assert!(worst < 0.01, "worst {worst}");
+}
+
+/// The CLI's default bake of `path` in-process, with H.
+fn bake_in_process(path: &Path) -> (importer::Scene, bake_core::Bake, Vec<[f64; 3]>) {
+    let scene = importer::load(path).expect("load");
+    let request = bake_core::Request {
+        irradiance: true,
+        ..bake_core::Request::default()
+    };
+    let settings = bake_core::Settings::resolve(&request, &scene.polygons).expect("settings");
+    let mut baked = bake_core::run(&scene, &settings, &bake_core::Silent).expect("bake");
+    let h = baked.irradiance.take().expect("irradiance");
+    (scene, baked, h)
+}
+
+/// The flat lightmap of an in-process bake with the scene's authored TEXCOORD_1 under
+/// `mode`, at (texel size, atlas side, most atlases).
+fn flat_lightmap(
+    scene: &importer::Scene,
+    baked: &bake_core::Bake,
+    irradiance: &[[f64; 3]],
+    (texel_size, max_size, max_atlases): (f64, u32, u32),
+    mode: lightmap::UvMode,
+) -> lightmap::Lightmap {
+    let options = lightmap::Options {
+        texel_size,
+        max_size,
+        shading: lightmap::Shading::Flat,
+        max_atlases,
+    };
+    lightmap::build_with(
+        &scene.polygons,
+        &baked.mesh,
+        irradiance,
+        &options,
+        &lightmap::AuthoredUv::from_scene(scene),
+        mode,
+    )
+    .expect("build the lightmap")
+}
+
+/// The largest difference, relative to the peak H, between each element's H and the EXR
+/// of its polygon's atlas (`exrs`, by atlas) sampled at its centroid through `map`'s
+/// TEXCOORD_1.
+fn flat_error(
+    scene: &importer::Scene,
+    baked: &bake_core::Bake,
+    irradiance: &[[f64; 3]],
+    map: &lightmap::Lightmap,
+    exrs: &[(u32, u32, Vec<[f32; 3]>)],
+) -> f64 {
+    let peak = irradiance.iter().flatten().fold(0.0f64, |m, v| m.max(*v));
+    let mut worst = 0.0f64;
+    for (i, element) in baked.mesh.elements.iter().enumerate() {
+        let p = element.polygon as usize;
+        let polygon = &scene.polygons[p];
+        let uv: Vec<DVec2> = (0..polygon.vertices.len())
+            .map(|v| DVec2::from_array(map.texcoord(p, v).map(f64::from)))
+            .collect();
+        let at = texcoord_at(polygon, &uv, element.centroid);
+        let (w, h, texels) = &exrs[map.charts[p].atlas as usize];
+        let got = lightmap::sample_bilinear(texels, *w, *h, at.to_array());
+        for c in 0..3 {
+            worst = worst.max((got[c] - irradiance[i][c]).abs() / peak);
+        }
+    }
+    worst
 }
 
 /// TEXCOORD_1 at `point` of `polygon`, over the fan triangle (v0 vk vk+1) holding it.
@@ -578,4 +645,431 @@ fn grouped_charts_carry_a_point_lights_closed_form_through_the_files() {
     assert!(checked > 3000, "{checked}");
     println!("{checked} triangle centroids: worst relative error {worst:.2e}");
     assert!(worst < 0.01, "worst {worst}");
+}
+
+// ---- auto, per primitive ----
+
+/// A TEXCOORD_1 square: corner and side.
+type Square = ([f32; 2], f32);
+
+/// One node per entry, 2 apart along x, each its own mesh from [`two_quads`] with TEXCOORD_1
+/// squares (floor, ceiling); node names "p0", "p1", …
+fn primitives_scene(squares: &[(Square, Square)]) -> Value {
+    let mut doc = json!({
+        "asset": { "version": "2.0" }, "scene": 0, "scenes": [{ "nodes": [] }],
+        "nodes": [], "meshes": [], "materials": [], "accessors": [], "bufferViews": [],
+        "buffers": []
+    });
+    let push = |doc: &mut Value, key: &str, v: Value| {
+        let list = doc[key].as_array_mut().expect("a list");
+        list.push(v);
+        list.len() - 1
+    };
+    for (k, &(floor, ceiling)) in squares.iter().enumerate() {
+        let one = two_quads(floor, ceiling, json!({}));
+        let buffer = push(&mut doc, "buffers", one["buffers"][0].clone());
+        let views = doc["bufferViews"].as_array().map_or(0, Vec::len);
+        for mut view in one["bufferViews"].as_array().cloned().unwrap_or_default() {
+            view["buffer"] = json!(buffer);
+            push(&mut doc, "bufferViews", view);
+        }
+        let accessors = doc["accessors"].as_array().map_or(0, Vec::len);
+        for mut a in one["accessors"].as_array().cloned().unwrap_or_default() {
+            a["bufferView"] = json!(a["bufferView"].as_u64().unwrap_or(0) as usize + views);
+            push(&mut doc, "accessors", a);
+        }
+        let material = push(&mut doc, "materials", one["materials"][0].clone());
+        let mut primitive = one["meshes"][0]["primitives"][0].clone();
+        for set in ["POSITION", "TEXCOORD_0", "TEXCOORD_1"] {
+            let a = primitive["attributes"][set].as_u64().unwrap_or(0) as usize;
+            primitive["attributes"][set] = json!(a + accessors);
+        }
+        primitive["material"] = json!(material);
+        let mesh = push(
+            &mut doc,
+            "meshes",
+            json!({ "name": format!("p{k}"), "primitives": [primitive] }),
+        );
+        let node = push(
+            &mut doc,
+            "nodes",
+            json!({ "name": format!("p{k}"), "mesh": mesh, "translation": [2.0 * k as f64, 0.0, 0.0] }),
+        );
+        doc["scenes"][0]["nodes"]
+            .as_array_mut()
+            .expect("nodes")
+            .push(json!(node));
+    }
+    doc
+}
+
+/// `auto` decides per primitive: two primitives whose TEXCOORD_1 each fill the same part of
+/// [0, 1] (as Blender's per-object UV maps do) overlap each other, so the whole layout cannot
+/// be kept, but each keeps its own in its own atlas region — its output TEXCOORD_1 is the
+/// input's under one scale (the same in texels along u and v) and a shift; a third primitive
+/// whose TEXCOORD_1 overlaps itself gets generated charts. `keep` refuses the scene for that
+/// third one; for the first two alone it gives each an atlas of its own, TEXCOORD_1
+/// unchanged. The
+/// texels (`--shading flat`) at element centroids, sampled through the written TEXCOORD_1,
+/// are the elements' H; the output is validator clean.
+#[test]
+fn auto_keeps_each_usable_primitive_in_its_own_region() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let d = dir.path();
+    let good = (([0.0625, 0.0625], 0.375), ([0.5625, 0.0625], 0.375));
+    let folded = (([0.0625, 0.0625], 0.375), ([0.25, 0.25], 0.375));
+    let doc = primitives_scene(&[good, good, folded]);
+    // `keep` refuses the primitive that overlaps itself, naming it.
+    let (run, _) = bake_uv(d, "keep", &doc, "keep");
+    assert_eq!(run.code, Some(1), "{run:#?}");
+    assert!(
+        run.stderr.contains("node 2 mesh 2 primitive 0") && run.stderr.contains("overlaps itself"),
+        "{}",
+        run.stderr
+    );
+    // Without it, `keep` gives each primitive an atlas of its own, its TEXCOORD_1 unchanged
+    // (every output vertex's is the input's there, within f32 rounding).
+    let pair = primitives_scene(&[good, good]);
+    let (run, layout) = bake_uv(d, "exact", &pair, "keep");
+    run.success();
+    for k in 0..2 {
+        assert_eq!(layout[k]["uv"], "kept", "{layout}");
+        assert_eq!(layout[k]["own_region"], false, "{layout}");
+    }
+    let (inputs, outputs) = (
+        triangles_by_node(&d.join("exact.gltf"), 1),
+        triangles_by_node(&d.join("exact-out.gltf"), 1),
+    );
+    for (name, tris) in &outputs {
+        for (p, t) in tris {
+            for k in 0..3 {
+                let want = uv_at(&inputs[name], p[k]).expect("an input triangle there");
+                assert!(
+                    (want - t[k]).abs().max_element() <= f64::from(f32::EPSILON),
+                    "{name}: {} vs the input's {want}",
+                    t[k]
+                );
+            }
+        }
+    }
+    let (document, _, images) = gltf::import(d.join("exact-out.gltf")).expect("re-read");
+    assert_eq!((document.images().count(), images.len()), (2, 2));
+    // More atlases than allowed: refused before the bake.
+    let refused = bake([
+        d.join("exact.gltf").as_os_str(),
+        d.join("exact-one.gltf").as_os_str(),
+        "--lightmap-uv".as_ref(),
+        "keep".as_ref(),
+        "--lightmap-atlases".as_ref(),
+        "1".as_ref(),
+    ]);
+    assert_eq!(refused.code, Some(1), "{refused:#?}");
+    assert!(
+        refused.stderr.contains("more than --lightmap-atlases 1"),
+        "{}",
+        refused.stderr
+    );
+    assert!(!d.join("exact-one.gltf").exists());
+    if let Some(summary) = validate_clean(&[d.join("exact-out.gltf")]) {
+        eprintln!("{summary}");
+    }
+
+    let input = d.join("mixed.gltf");
+    write_json(&input, &doc);
+    let out = d.join("mixed-out.gltf");
+    let report = d.join("mixed.json");
+    bake([
+        input.as_os_str(),
+        out.as_os_str(),
+        "--target".as_ref(),
+        "lightmap".as_ref(),
+        "--shading".as_ref(),
+        "flat".as_ref(),
+        "--report".as_ref(),
+        report.as_os_str(),
+    ])
+    .success();
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).expect("report")).expect("JSON");
+    let layout = &report["options"]["lightmap_layout"];
+    assert_eq!(layout.as_array().map(Vec::len), Some(3), "{layout}");
+    for k in 0..2 {
+        assert_eq!(layout[k]["uv"], "kept", "{layout}");
+        assert_eq!(layout[k]["own_region"], true, "{layout}");
+    }
+    assert_eq!(layout[2]["uv"], "generated", "{layout}");
+    assert!(
+        layout[2]["reason"]
+            .as_str()
+            .is_some_and(|r| r.contains("overlaps itself")),
+        "{layout}"
+    );
+
+    // Kept primitives: output = input × (a_u, a_v) + (b_u, b_v), with a_u W = a_v H (one
+    // scale in texels), fitted on the extremes and checked at every vertex.
+    let (inputs, outputs) = (triangles_by_node(&input, 1), triangles_by_node(&out, 1));
+    let (document, _, images) = gltf::import(&out).expect("re-read");
+    let png = document
+        .images()
+        .next()
+        .expect("the lightmap image")
+        .index();
+    let (w, h) = (f64::from(images[png].width), f64::from(images[png].height));
+    let mut boxes = Vec::new();
+    for name in ["p0", "p1"] {
+        let mut pairs = Vec::new();
+        for (p, t) in &outputs[name] {
+            for k in 0..3 {
+                let want = uv_at(&inputs[name], p[k]).expect("an input triangle there");
+                pairs.push((want, t[k]));
+            }
+        }
+        let (lo_in, hi_in, lo_out, hi_out) = pairs.iter().fold(
+            (
+                DVec2::INFINITY,
+                DVec2::NEG_INFINITY,
+                DVec2::INFINITY,
+                DVec2::NEG_INFINITY,
+            ),
+            |(a, b, c, e), (i, o)| (a.min(*i), b.max(*i), c.min(*o), e.max(*o)),
+        );
+        let scale = (hi_out - lo_out) / (hi_in - lo_in);
+        let texels = scale * DVec2::new(w, h);
+        assert!(
+            (texels.x - texels.y).abs() <= 1e-5 * texels.x,
+            "{name}: {texels}"
+        );
+        for (i, o) in &pairs {
+            let mapped = lo_out + (*i - lo_in) * scale;
+            assert!(
+                (mapped - *o).abs().max_element() <= 4.0 * f64::from(f32::EPSILON),
+                "{name}: {i} → {o}, affine {mapped}"
+            );
+            assert!(o.min_element() >= 0.0 && o.max_element() <= 1.0, "{o}");
+        }
+        boxes.push((lo_out, hi_out));
+    }
+    let (a, b) = (boxes[0], boxes[1]);
+    assert!(
+        a.1.x <= b.0.x || b.1.x <= a.0.x || a.1.y <= b.0.y || b.1.y <= a.0.y,
+        "the two kept primitives' regions overlap: {boxes:?}"
+    );
+    if let Some(summary) = validate_clean(std::slice::from_ref(&out)) {
+        eprintln!("{summary}");
+    }
+
+    // The same lightmap in-process: the CLI's EXR, and H at element centroids.
+    let (scene, baked, irradiance) = bake_in_process(&input);
+    let texel = lightmap::default_texel_size(&scene.polygons);
+    let map = flat_lightmap(&scene, &baked, &irradiance, (texel, 4096, 16), Auto);
+    let exr = read_exr(&d.join("mixed-out.lightmap.exr"));
+    assert_eq!((exr.0, exr.1), (map.width, map.height));
+    assert!(exr.2 == map.texels, "the CLI's texels");
+    let worst = flat_error(&scene, &baked, &irradiance, &map, &[exr]);
+    println!(
+        "{} elements, atlas {}×{}, flat texels at centroids vs H: {worst:.2e} of the peak",
+        baked.mesh.elements.len(),
+        map.width,
+        map.height
+    );
+    assert!(worst <= 1e-6, "{worst}");
+}
+
+// ---- several atlases ----
+
+/// Three primitives (each keeping its own TEXCOORD_1 in a region of 100 × 46 texels at 40
+/// texels per metre) under `--lightmap-max 128`: one atlas cannot hold them at that texel
+/// size, so they go into two atlases (whole primitives per atlas) instead of coarser texels.
+/// Each atlas is its own PNG and EXR, each primitive's material points at the lightmap of its
+/// atlas and its TEXCOORD_1 lies in [0, 1]; validator clean; the flat texels at element
+/// centroids, sampled in the polygon's own atlas, are the elements' H. With
+/// `--lightmap-atlases 1` the texel size grows instead, as before.
+#[test]
+fn charts_that_need_several_atlases_get_them() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let d = dir.path();
+    let good = (([0.0625, 0.0625], 0.375), ([0.5625, 0.0625], 0.375));
+    let doc = primitives_scene(&[good, good, good]);
+    let input = d.join("three.gltf");
+    write_json(&input, &doc);
+    let run = |atlases: &str, name: &str| {
+        let out = d.join(format!("{name}.gltf"));
+        let report = d.join(format!("{name}.json"));
+        let run = bake([
+            input.as_os_str(),
+            out.as_os_str(),
+            "--target".as_ref(),
+            "lightmap".as_ref(),
+            "--shading".as_ref(),
+            "flat".as_ref(),
+            "--lightmap-texel".as_ref(),
+            "0.025".as_ref(),
+            "--lightmap-max".as_ref(),
+            "128".as_ref(),
+            "--lightmap-atlases".as_ref(),
+            atlases.as_ref(),
+            "--report".as_ref(),
+            report.as_os_str(),
+        ])
+        .success();
+        (out, run)
+    };
+    let (out, several) = run("16", "several");
+    assert!(
+        !several.stderr.contains("texel size raised"),
+        "{}",
+        several.stderr
+    );
+    let (_, one) = run("1", "one");
+    assert!(one.stderr.contains("texel size raised"), "{}", one.stderr);
+    // An input texture where the second atlas's PNG would go: refused (exit 2), untouched.
+    let mut textured = doc.clone();
+    textured["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = json!({ "index": 0 });
+    textured["textures"] = json!([{ "source": 0 }]);
+    textured["images"] = json!([{ "uri": "clash.lightmap-1.png" }]);
+    let png = image::RgbImage::from_pixel(2, 2, image::Rgb([200, 200, 200]));
+    png.save(d.join("clash.lightmap-1.png"))
+        .expect("write the texture");
+    let before = std::fs::read(d.join("clash.lightmap-1.png")).expect("read");
+    let clash_in = d.join("clash-in.gltf");
+    write_json(&clash_in, &textured);
+    let refused = bake([
+        clash_in.as_os_str(),
+        d.join("clash.gltf").as_os_str(),
+        "--target".as_ref(),
+        "lightmap".as_ref(),
+        "--lightmap-texel".as_ref(),
+        "0.025".as_ref(),
+        "--lightmap-max".as_ref(),
+        "128".as_ref(),
+    ]);
+    assert_eq!(refused.code, Some(2), "{refused:#?}");
+    assert!(
+        refused.stderr.contains("overwrite an input"),
+        "{}",
+        refused.stderr
+    );
+    assert_eq!(
+        std::fs::read(d.join("clash.lightmap-1.png")).expect("read"),
+        before
+    );
+
+    // A .glb embeds every atlas's PNG; the EXRs lie beside it.
+    let glb = d.join("both.glb");
+    bake([
+        input.as_os_str(),
+        glb.as_os_str(),
+        "--lightmap-texel".as_ref(),
+        "0.025".as_ref(),
+        "--lightmap-max".as_ref(),
+        "128".as_ref(),
+    ])
+    .success();
+    let side = d.join("both.lightmap.glb");
+    let (document, _, images) = gltf::import(&side).expect("re-read the .glb");
+    assert_eq!((document.images().count(), images.len()), (2, 2));
+    for name in ["both.lightmap.exr", "both.lightmap-1.exr"] {
+        assert!(d.join(name).is_file(), "{name}");
+    }
+    assert!(!d.join("both.lightmap.png").exists());
+    if let Some(summary) = validate_clean(&[glb.clone(), side.clone()]) {
+        eprintln!("{summary}");
+    }
+
+    let (scene, baked, irradiance) = bake_in_process(&input);
+    let map = flat_lightmap(&scene, &baked, &irradiance, (0.025, 128, 16), Auto);
+    let atlases = map.atlases();
+    assert_eq!(atlases.len(), 2, "{:?}", map.stats);
+    assert_eq!((map.stats.reductions, map.texel_size), (0, 0.025));
+    // At 80 texels per metre one primitive alone (≈ 200 × 92 texels) exceeds 128: the texel
+    // size grows, to just what fits, and the atlases stay within 128.
+    let fine = flat_lightmap(&scene, &baked, &irradiance, (0.0125, 128, 16), Auto);
+    assert!(fine.stats.reductions > 0, "{:?}", fine.stats);
+    assert!(
+        fine.texel_size > 0.0125 && fine.texel_size < 0.0125 * 1.7,
+        "{}",
+        fine.texel_size
+    );
+    assert!(fine
+        .atlases()
+        .iter()
+        .all(|a| a.width <= 128 && a.height <= 128));
+    // Generated charts (one per polygon) split the same way.
+    let generated = flat_lightmap(&scene, &baked, &irradiance, (0.025, 128, 16), Generate);
+    assert!(generated.atlases().len() >= 2, "{:?}", generated.stats);
+    assert_eq!(generated.stats.reductions, 0);
+    for (p, chart) in generated.charts.iter().enumerate() {
+        let o = scene.polygons[p].origin;
+        let same = scene.polygons.iter().zip(&generated.charts).all(|(q, c)| {
+            (q.origin.node, q.origin.primitive) != (o.node, o.primitive) || c.atlas == chart.atlas
+        });
+        assert!(same, "polygon {p}: its primitive is split across atlases");
+    }
+    println!(
+        "atlases {:?}, occupancy {:.3}",
+        atlases
+            .iter()
+            .map(|a| (a.width, a.height))
+            .collect::<Vec<_>>(),
+        map.stats.occupancy
+    );
+    // Each atlas's EXR is the in-process atlas; its PNG is beside it.
+    let mut exrs = Vec::new();
+    for (k, atlas) in atlases.iter().enumerate() {
+        let suffix = if k == 0 {
+            String::new()
+        } else {
+            format!("-{k}")
+        };
+        let (w, h, texels) = read_exr(&d.join(format!("several.lightmap{suffix}.exr")));
+        assert_eq!((w, h), (atlas.width, atlas.height));
+        assert!(w <= 128 && h <= 128);
+        assert!(texels == atlas.texels, "atlas {k}: the CLI's texels");
+        assert!(d.join(format!("several.lightmap{suffix}.png")).is_file());
+        exrs.push((w, h, texels));
+    }
+    // The output: each primitive's lightmap texture is its atlas's PNG; TEXCOORD_1 in [0, 1].
+    let (document, buffers, _) = gltf::import(&out).expect("re-read");
+    assert_eq!(document.images().count(), 2);
+    for node in document.nodes() {
+        let Some(mesh) = node.mesh() else { continue };
+        let polygon = scene
+            .polygons
+            .iter()
+            .position(|p| p.origin.node == node.index())
+            .expect("the node's polygons");
+        let atlas = map.charts[polygon].atlas as usize;
+        let suffix = if atlas == 0 {
+            String::new()
+        } else {
+            format!("-{atlas}")
+        };
+        for primitive in mesh.primitives() {
+            let material = primitive.material().index().expect("a material");
+            let json = document.as_json();
+            let extension = json.materials[material]
+                .extensions
+                .as_ref()
+                .and_then(|e| e.others.get("MOZ_lightmap"))
+                .expect("MOZ_lightmap");
+            let texture = extension["index"].as_u64().expect("index") as usize;
+            let image = json.textures[texture].source.value();
+            assert_eq!(
+                json.images[image].uri.as_deref(),
+                Some(format!("several.lightmap{suffix}.png").as_str()),
+                "node {}",
+                node.index()
+            );
+            let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d[..]));
+            for uv in reader.read_tex_coords(1).expect("TEXCOORD_1").into_f32() {
+                assert!(uv.iter().all(|c| (0.0..=1.0).contains(c)), "{uv:?}");
+            }
+        }
+    }
+    if let Some(summary) = validate_clean(std::slice::from_ref(&out)) {
+        eprintln!("{summary}");
+    }
+    // Flat texels at element centroids, in each polygon's own atlas.
+    let worst = flat_error(&scene, &baked, &irradiance, &map, &exrs);
+    assert!(worst <= 1e-6, "{worst}");
 }

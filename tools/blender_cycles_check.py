@@ -1,7 +1,7 @@
 """Cycles renders of a bake, compared with the bake's numbers: run by tools/blender-cycles-check.
 
     blender -b --factory-startup --python-exit-code 1 --python tools/blender_cycles_check.py \
-        -- BAKED.gltf REPORT.json [--lightmap] [--png OUT.png] [--width W]
+        -- BAKED.gltf REPORT.json [--lightmap [--exr]] [--png OUT.png] [--width W]
 
 Imports BAKED (a vertex bake written with --shading flat, or with --lightmap the lightmap bake
 beside it, BAKED being the .lightmap.gltf) with Blender's stock importer and replaces every
@@ -11,7 +11,9 @@ material by emission-only shading, so each pixel is exactly what the node set-up
                   (COLOR_0), strength 1
   lightmap bake:  Emission = base-colour texture(UV map 0) × baseColorFactor
                   × lightmap PNG(UV map 1, sRGB → linear) × png_scale × exposure, strength 1
-                  (png_scale is MOZ_lightmap's intensity; exposure the report's)
+                  (png_scale is MOZ_lightmap's intensity; exposure the report's); with
+                  --exr the lightmap EXR (UV map 1, Linear) × exposure instead, the README's
+                  set-up (no 8-bit quantisation)
 
 then renders with Cycles from an orthographic camera looking straight down (a black world, no
 lights, 16 samples, a 0.01-pixel filter, the "Standard" view transform: 8-bit sRGB of the
@@ -57,13 +59,15 @@ def linear_to_srgb8(v):
 
 def parse_args():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
-    args = {"lightmap": False, "png": None, "width": 1200, "tolerance": 2.0}
+    args = {"lightmap": False, "exr": False, "png": None, "width": 1200, "tolerance": 2.0}
     positional = []
     i = 0
     while i < len(argv):
         a = argv[i]
         if a == "--lightmap":
             args["lightmap"] = True
+        elif a == "--exr":
+            args["exr"] = True
         elif a in ("--png", "--width", "--tolerance"):
             i += 1
             args[a[2:]] = argv[i] if a == "--png" else float(argv[i])
@@ -174,10 +178,16 @@ def main():
     lightmap = None
     if args["lightmap"]:
         extras = doc["extras"]["bake_lightmap"]
-        png = os.path.join(os.path.dirname(os.path.abspath(args["gltf"])), extras["png"])
-        image = bpy.data.images.load(png)
-        image.colorspace_settings.name = "sRGB"
-        lightmap = {"image": image, "scale": extras["png_scale"], "exposure": exposure}
+        folder = os.path.dirname(os.path.abspath(args["gltf"]))
+        if args["exr"]:
+            image = bpy.data.images.load(os.path.join(folder, extras["exr"]))
+            image.colorspace_settings.name = "Linear"
+            scale = 1.0
+        else:
+            image = bpy.data.images.load(os.path.join(folder, extras["png"]))
+            image.colorspace_settings.name = "sRGB"
+            scale = extras["png_scale"]
+        lightmap = {"image": image, "scale": scale, "exposure": exposure}
 
     # glTF materials by name: factor and whether they carry a base-colour texture.
     gltf_materials = {}
@@ -287,6 +297,7 @@ def main():
     result = {
         "file": args["gltf"],
         "lightmap": args["lightmap"],
+        "image": ("exr" if args["exr"] else "png") if args["lightmap"] else None,
         "compared": len(diffs),
         "max_levels": round(max(diffs), 3) if diffs else None,
         "mean_levels": round(sum(diffs) / len(diffs), 3) if diffs else None,

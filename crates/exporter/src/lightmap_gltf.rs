@@ -1,7 +1,8 @@
 //! Writes the lightmap bake: the input's polygons (not subdivided) in each node's local space
-//! with lit materials rebuilt from the input's, `TEXCOORD_1` into one lightmap atlas wired
-//! with `MOZ_lightmap` (what three.js-based viewers such as Hubs read), the atlas as an 8-bit
-//! sRGB PNG and as a linear float EXR. Every file is written atomically; the glTF last.
+//! with lit materials rebuilt from the input's, `TEXCOORD_1` into the primitive's lightmap
+//! atlas wired with `MOZ_lightmap` (what three.js-based viewers such as Hubs read), each atlas
+//! as an 8-bit sRGB PNG and as a linear float EXR (several atlases: one material per input
+//! material and atlas). Every file is written atomically; the glTF last.
 //!
 //! Layout of each output primitive: the polygons of one input primitive instance, in the
 //! importer's polygon order, each with its own 3 or 4 vertices (in the polygon's vertex
@@ -86,6 +87,32 @@ impl LightmapPaths {
     }
 }
 
+impl LightmapPaths {
+    /// The PNG of atlas `k` (0: [`LightmapPaths::png`]; k ≥ 1: `<stem>.lightmap-<k>.png`).
+    pub fn atlas_png(&self, k: usize) -> Result<PathBuf, ExportError> {
+        numbered(&self.png, k)
+    }
+
+    /// The EXR of atlas `k` (0: [`LightmapPaths::exr`]; k ≥ 1: `<stem>.lightmap-<k>.exr`).
+    pub fn atlas_exr(&self, k: usize) -> Result<PathBuf, ExportError> {
+        numbered(&self.exr, k)
+    }
+}
+
+/// `path` for k = 0; `<dir>/<stem>-<k>.<ext>` for `<dir>/<stem>.<ext>` otherwise.
+fn numbered(path: &Path, k: usize) -> Result<PathBuf, ExportError> {
+    if k == 0 {
+        return Ok(path.to_path_buf());
+    }
+    let bad = || ExportError::UnsupportedExtension(path.to_path_buf());
+    let stem = path.file_stem().ok_or_else(bad)?;
+    let extension = path.extension().ok_or_else(bad)?;
+    let mut name = stem.to_os_string();
+    name.push(format!("-{k}."));
+    name.push(extension);
+    Ok(path.with_file_name(name))
+}
+
 /// `<dir>/<stem>.<suffix>` for `<dir>/<stem>.<ext>`.
 fn sibling(path: &Path, suffix: &str) -> Result<PathBuf, ExportError> {
     let stem = path
@@ -111,8 +138,11 @@ pub struct LightmapBake<'a> {
 /// What was written.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LightmapWritten {
-    /// `MOZ_lightmap.intensity`: `H = srgb_to_linear(png / 255) × png_scale`.
+    /// `MOZ_lightmap.intensity`: `H = srgb_to_linear(png / 255) × png_scale` (the first
+    /// atlas's).
     pub png_scale: f64,
+    /// Each atlas's `png_scale`.
+    pub png_scales: Vec<f64>,
     /// Every file written, in the order they were renamed into place.
     pub files: Vec<PathBuf>,
 }
@@ -151,55 +181,83 @@ pub fn stage_lightmap_gltf(
         what: "lightmap",
         message: e.to_string(),
     };
-    let exr = lightmap::encode_exr(lightmap).map_err(encode)?;
-    let png = lightmap::encode_png(lightmap).map_err(encode)?;
+    // One EXR, PNG and texture per atlas.
+    let atlases = lightmap.atlases();
+    let mut exrs = Vec::with_capacity(atlases.len());
+    let mut pngs = Vec::with_capacity(atlases.len());
+    for atlas in &atlases {
+        exrs.push(lightmap::encode_exr_atlas(*atlas).map_err(encode)?);
+        pngs.push(lightmap::encode_png_atlas(*atlas).map_err(encode)?);
+    }
+    let mut png_paths = Vec::with_capacity(atlases.len());
+    let mut exr_paths = Vec::with_capacity(atlases.len());
+    for k in 0..atlases.len() {
+        png_paths.push(paths.atlas_png(k)?);
+        exr_paths.push(paths.atlas_exr(k)?);
+    }
 
     let mut writer = DocumentWriter::default();
     writer.root.asset.generator = Some(format!("bake {}", env!("CARGO_PKG_VERSION")));
     writer.add_layout(&scene.layout);
-    let image = match format {
-        OutputFormat::Gltf => json::Image {
-            buffer_view: None,
-            mime_type: Some(json::image::MimeType("image/png".into())),
-            name: Some("lightmap".into()),
-            uri: Some(files::uri_for_file_name(&paths.png)),
-            extensions: None,
-            extras: Default::default(),
-        },
-        OutputFormat::Glb => {
-            let view = embed(&mut writer, &png.bytes);
-            json::Image {
-                buffer_view: Some(view),
+    let mut textures = Vec::with_capacity(atlases.len());
+    for (k, png) in pngs.iter().enumerate() {
+        let name = if k == 0 {
+            "lightmap".to_string()
+        } else {
+            format!("lightmap-{k}")
+        };
+        let image = match format {
+            OutputFormat::Gltf => json::Image {
+                buffer_view: None,
                 mime_type: Some(json::image::MimeType("image/png".into())),
-                name: Some("lightmap".into()),
-                uri: None,
+                name: Some(name),
+                uri: Some(files::uri_for_file_name(&png_paths[k])),
                 extensions: None,
                 extras: Default::default(),
+            },
+            OutputFormat::Glb => {
+                let view = embed(&mut writer, &png.bytes);
+                json::Image {
+                    buffer_view: Some(view),
+                    mime_type: Some(json::image::MimeType("image/png".into())),
+                    name: Some(name),
+                    uri: None,
+                    extensions: None,
+                    extras: Default::default(),
+                }
             }
-        }
-    };
-    let texture = add_texture(&mut writer.root, image);
+        };
+        textures.push(add_texture(&mut writer.root, image));
+    }
     let mut assets = Assets::new(&scene.authored);
-    // Scene material → (output material, whether its textures read the input's TEXCOORD_1,
-    // which moves to TEXCOORD_2 because the lightmap takes TEXCOORD_1).
-    let mut materials: BTreeMap<usize, (Index<json::Material>, UvNeeds)> = BTreeMap::new();
+    // (Scene material, atlas) → (output material, whether its textures read the input's
+    // TEXCOORD_1, which moves to TEXCOORD_2 because the lightmap takes TEXCOORD_1).
+    let mut materials: BTreeMap<(usize, u32), (Index<json::Material>, UvNeeds)> = BTreeMap::new();
     for ((node, mesh), primitives) in group_polygons(scene) {
         let space = NodeSpace::new(&scene.layout.nodes[node].world, node)?;
         let mut output = Vec::with_capacity(primitives.len());
         for (primitive, polygons) in primitives {
             let material_index = scene.layout.meshes[mesh].primitives[primitive].material;
-            let (material, needs) = match materials.get(&material_index) {
+            // A primitive is drawn with one lightmap: its polygons share an atlas.
+            let atlas = polygons.first().map_or(0, |&p| lightmap.charts[p].atlas);
+            if polygons.iter().any(|&p| lightmap.charts[p].atlas != atlas) {
+                return Err(ExportError::InvalidData(format!(
+                    "node {node} mesh {mesh} primitive {primitive}: its polygons are in several lightmap atlases"
+                )));
+            }
+            let (texture, scale) = (textures[atlas as usize], pngs[atlas as usize].scale);
+            let (material, needs) = match materials.get(&(material_index, atlas)) {
                 Some(&m) => m,
                 None => {
                     let source = scene.materials.get(material_index).ok_or_else(|| {
                         ExportError::InvalidData(format!("missing material {material_index}"))
                     })?;
                     let made = match assets.material(&mut writer, material_index, false)? {
-                        Some(authored) => kept_material(authored, texture, png.scale),
-                        None => (lit_material(source, texture, png.scale), UvNeeds::default()),
+                        Some(authored) => kept_material(authored, texture, scale),
+                        None => (lit_material(source, texture, scale), UvNeeds::default()),
                     };
                     let m = (writer.root.push(made.0), made.1);
-                    materials.insert(material_index, m);
+                    materials.insert((material_index, atlas), m);
                     m
                 }
             };
@@ -233,11 +291,15 @@ pub fn stage_lightmap_gltf(
             .extensions_used
             .push(EMISSIVE_STRENGTH_EXTENSION.into());
     }
-    let png_uri = match format {
-        OutputFormat::Gltf => Some(files::uri_for_file_name(&paths.png)),
-        OutputFormat::Glb => None,
-    };
-    let extras = extras(lightmap, png.scale, png_uri, &paths.exr).to_string();
+    let png_uris: Vec<Option<String>> = png_paths
+        .iter()
+        .map(|p| match format {
+            OutputFormat::Gltf => Some(files::uri_for_file_name(p)),
+            OutputFormat::Glb => None,
+        })
+        .collect();
+    let scales: Vec<f64> = pngs.iter().map(|p| p.scale).collect();
+    let extras = extras(lightmap, &scales, &png_uris, &exr_paths).to_string();
     let extras =
         serde_json::value::RawValue::from_string(extras).map_err(|e| ExportError::Encode {
             what: "glTF extras",
@@ -245,30 +307,33 @@ pub fn stage_lightmap_gltf(
         })?;
     writer.root.extras = Some(extras);
 
-    let exr_path = paths.exr.as_path();
+    // Per atlas its EXR (and PNG for .gltf), then the .bin and the glTF.
+    let mut staged: Vec<(&Path, &[u8])> = Vec::new();
+    for k in 0..atlases.len() {
+        staged.push((exr_paths[k].as_path(), &exrs[k]));
+        if format == OutputFormat::Gltf {
+            staged.push((png_paths[k].as_path(), &pngs[k].bytes));
+        }
+    }
     let written = match format {
         OutputFormat::Gltf => {
             let bin_path = files::bin_path_for(&paths.gltf)?;
             let (root, bin) = writer.finish(Some(files::uri_for_file_name(&bin_path)));
             let json = encode_json(&root)?;
-            stage_all(
-                set,
-                &[
-                    (exr_path, &exr),
-                    (paths.png.as_path(), &png.bytes),
-                    (bin_path.as_path(), &bin),
-                    (paths.gltf.as_path(), &json),
-                ],
-            )?
+            staged.push((bin_path.as_path(), &bin));
+            staged.push((paths.gltf.as_path(), &json));
+            stage_all(set, &staged)?
         }
         OutputFormat::Glb => {
             let (root, bin) = writer.finish(None);
             let glb = encode_glb(&root, &bin)?;
-            stage_all(set, &[(exr_path, &exr), (paths.gltf.as_path(), &glb)])?
+            staged.push((paths.gltf.as_path(), &glb));
+            stage_all(set, &staged)?
         }
     };
     Ok(LightmapWritten {
-        png_scale: png.scale,
+        png_scale: pngs[0].scale,
+        png_scales: scales,
         files: written,
     })
 }
@@ -317,10 +382,24 @@ fn add_lights(root: &mut json::Root, scene: &Scene) {
 /// The root `extras`: what the lightmap is, its units and its files.
 fn extras(
     lightmap: &Lightmap,
-    png_scale: f64,
-    png_uri: Option<String>,
-    exr: &Path,
+    png_scales: &[f64],
+    png_uris: &[Option<String>],
+    exrs: &[PathBuf],
 ) -> serde_json::Value {
+    let (png_scale, png_uri, exr) = (png_scales[0], png_uris[0].clone(), &exrs[0]);
+    let atlases: Vec<serde_json::Value> = lightmap
+        .atlases()
+        .iter()
+        .enumerate()
+        .map(|(k, a)| {
+            serde_json::json!({
+                "exr": files::uri_for_file_name(&exrs[k]),
+                "png": png_uris[k],
+                "png_scale": png_scales[k],
+                "atlas": [a.width, a.height],
+            })
+        })
+        .collect();
     serde_json::json!({
         LIGHTMAP_EXTRAS_KEY: {
             "quantity": "irradiance",
@@ -336,6 +415,7 @@ fn extras(
             "requested_texel_size": lightmap.requested_texel_size,
             "atlas": [lightmap.width, lightmap.height],
             "occupancy": lightmap.stats.occupancy,
+            "atlases": atlases,
         }
     })
 }

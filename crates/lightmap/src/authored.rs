@@ -8,6 +8,10 @@
 //! primitives, since one atlas holds one layout (two instances of one mesh, or the two sides
 //! of a double-sided face, would share texels). Touching is allowed: overlaps count above
 //! 1e-6 of the smaller triangle's area (f32 rounding of shared edges is far below that).
+//! When the whole layout is not usable, each primitive instance is judged on its own (its
+//! own problems, overlaps within it): `keep` then gives each an atlas of its own when all
+//! pass (exact TEXCOORD_1), `auto` a region of its own for those that pass (TEXCOORD_1
+//! scaled and moved) and generated charts for the rest.
 //!
 //! The atlas is square, N texels a side, N from the texel size over the UV area:
 //! `N = sqrt(world area / UV area) / texel size`, rounded up to even, at least 16, at most
@@ -28,12 +32,18 @@ pub const MIN_PADDING: f64 = 2.0;
 /// Where the lightmap's charts come from (`--lightmap-uv`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum UvMode {
-    /// The input's `TEXCOORD_1` where the whole scene's is a usable layout, generated charts
-    /// otherwise (one atlas holds one layout); the decision per primitive is in
+    /// The input's `TEXCOORD_1` where the whole scene's is a usable layout; otherwise per
+    /// primitive instance: one whose own `TEXCOORD_1` is usable (in [0, 1], no overlaps
+    /// within it, not sampled by its material, one-sided) keeps its layout in its own atlas
+    /// region (its `TEXCOORD_1` scaled and moved: an affine map of the input's), the others
+    /// get generated charts. The decision per primitive is in
     /// [`crate::Lightmap::uv_decisions`].
     #[default]
     Auto,
-    /// The input's `TEXCOORD_1`; an error when it is not a usable layout.
+    /// The input's `TEXCOORD_1` as it is, for the whole scene: one atlas when it is one
+    /// usable layout; when primitives overlap each other but each one's own layout is usable,
+    /// an atlas per primitive (at most `Options::max_atlases`), each primitive's
+    /// `TEXCOORD_1` unchanged; an error otherwise.
     Keep,
     /// Charts made by the lightmap (one per polygon).
     Generate,
@@ -132,9 +142,20 @@ pub struct UvDecision {
     pub polygons: usize,
     /// Its `TEXCOORD_1` is the layout.
     pub kept: bool,
-    /// Why it was generated (empty when kept).
+    /// Why it was generated; for a primitive kept in its own atlas region, that (empty when
+    /// the whole scene's layout is kept as it is).
     pub reason: String,
+    /// Kept in its own atlas region: `TEXCOORD_1` is the input's scaled and moved.
+    pub own_region: bool,
 }
+
+/// The [`UvDecision::reason`] of a primitive kept exactly in an atlas of its own (`keep`).
+pub const OWN_ATLAS: &str =
+    "kept as authored in an atlas of its own (primitives' TEXCOORD_1 overlap each other)";
+
+/// The [`UvDecision::reason`] of a primitive kept in its own region.
+pub const OWN_REGION: &str =
+    "kept in its own atlas region (the input's TEXCOORD_1 scaled and moved: the whole scene's is not one usable layout)";
 
 /// The primitive instances of `polygons` in (node, mesh, primitive) order, each with its
 /// polygons.
@@ -156,6 +177,22 @@ pub(crate) struct Plan {
     pub(crate) decisions: Vec<UvDecision>,
     /// Some when the authored layout is kept: the atlas side N.
     pub(crate) kept: Option<Kept>,
+    /// When the whole layout is not kept: the primitives kept in their own regions (`Auto`)
+    /// or, `exact`, atlases (`Keep`: every primitive's own layout is usable, they overlap
+    /// each other).
+    pub(crate) own: Vec<Own>,
+    pub(crate) exact: bool,
+}
+
+/// A primitive instance whose own `TEXCOORD_1` is kept in its own atlas region.
+pub(crate) struct Own {
+    /// Its polygons, and each one's TEXCOORD_1 (in [0, 1]).
+    pub(crate) polygons: Vec<usize>,
+    pub(crate) uv: Vec<Vec<DVec2>>,
+    /// World area over UV area.
+    pub(crate) world_per_uv: f64,
+    /// "node N mesh M primitive P", for warnings.
+    pub(crate) label: String,
 }
 
 pub(crate) struct Kept {
@@ -186,6 +223,7 @@ pub(crate) fn plan(
             polygons: members.len(),
             kept: false,
             reason: String::new(),
+            own_region: false,
         })
         .collect();
     if mode == UvMode::Generate {
@@ -195,6 +233,8 @@ pub(crate) fn plan(
         return Ok(Plan {
             decisions,
             kept: None,
+            own: Vec::new(),
+            exact: false,
         });
     }
     if authored.polygons.len() != polygons.len() {
@@ -220,6 +260,7 @@ pub(crate) fn plan(
             }
         }
     }
+    let own_reasons = reasons.clone();
     let usable = reasons.iter().all(Option::is_none);
     let mut kept = None;
     if usable {
@@ -231,18 +272,8 @@ pub(crate) fn plan(
         let (world, uv_area) = polygons.iter().zip(&uv).fold((0.0, 0.0), |(w, u), (p, t)| {
             (w + crate::polygon_area(p), u + fan_area(t))
         });
-        // N from the texel size over the UV area; the atlas limit makes texels coarser.
-        let scale = (world / uv_area).sqrt();
-        let wanted = (scale / texel_size).ceil();
-        let mut side = if wanted.is_finite() {
-            wanted.clamp(16.0, f64::from(max_size)) as u32
-        } else {
-            16
-        };
-        side += side % 2;
-        side = side.min(max_size - max_size % 2);
-        let used = scale / f64::from(side);
-        let reductions = u32::from(used > texel_size * (1.0 + 1e-12) && wanted > f64::from(side));
+        let (side, used, reduced) = square_side((world / uv_area).sqrt(), texel_size, max_size);
+        let reductions = u32::from(reduced);
         let group_of: Vec<usize> = {
             let mut g = vec![0; polygons.len()];
             for (i, members) in groups.values().enumerate() {
@@ -287,29 +318,94 @@ pub(crate) fn plan(
         }
     }
     if kept.is_none() {
-        if mode == UvMode::Keep {
-            let (g, why) = reasons
-                .iter()
-                .enumerate()
-                .find_map(|(g, r)| r.as_ref().map(|r| (g, r.clone())))
-                .unwrap_or((0, "unusable".into()));
-            let d = &decisions[g];
-            return Err(LightmapError::AuthoredUv(format!(
-                "node {} mesh {} primitive {}: {why}",
-                d.node, d.mesh, d.primitive
-            )));
+        // Each primitive on its own — its own problems, then overlaps within it.
+        let exact = mode == UvMode::Keep;
+        let mut own = Vec::new();
+        let mut first_problem = None;
+        for ((d, members), r) in decisions.iter_mut().zip(groups.values()).zip(&own_reasons) {
+            let uv = members.iter().map(|&k| authored.polygons[k].as_deref());
+            let own_uv: Option<Vec<&[DVec2]>> = if r.is_none() {
+                uv.collect::<Result<_, _>>().ok()
+            } else {
+                None
+            };
+            let problem = match (r, &own_uv) {
+                (Some(r), _) => r.clone(),
+                (None, None) => "no usable TEXCOORD_1".into(),
+                (None, Some(uv)) => match check_layout(uv, None).overlap {
+                    Some((a, b)) => format!(
+                        "TEXCOORD_1 overlaps itself (polygons {} and {})",
+                        members[a], members[b]
+                    ),
+                    None => {
+                        let (world, area) =
+                            members.iter().zip(uv).fold((0.0, 0.0), |(w, u), (&k, t)| {
+                                (w + crate::polygon_area(&polygons[k]), u + fan_area(t))
+                            });
+                        d.kept = true;
+                        d.own_region = !exact;
+                        d.reason = if exact { OWN_ATLAS } else { OWN_REGION }.into();
+                        own.push(Own {
+                            polygons: members.clone(),
+                            uv: uv.iter().map(|t| t.to_vec()).collect(),
+                            world_per_uv: world / area,
+                            label: format!(
+                                "node {} mesh {} primitive {}",
+                                d.node, d.mesh, d.primitive
+                            ),
+                        });
+                        continue;
+                    }
+                },
+            };
+            if first_problem.is_none() {
+                first_problem = Some(format!(
+                    "node {} mesh {} primitive {}: {problem}",
+                    d.node, d.mesh, d.primitive
+                ));
+            }
+            d.reason = problem;
         }
-        for (d, r) in decisions.iter_mut().zip(&reasons) {
-            d.reason = r.clone().unwrap_or_else(|| {
-                "other primitives have no usable TEXCOORD_1 (one atlas holds one layout)".into()
-            });
+        if let (true, Some(why)) = (exact, first_problem) {
+            return Err(LightmapError::AuthoredUv(why));
         }
+        return Ok(Plan {
+            decisions,
+            kept: None,
+            own,
+            exact,
+        });
     } else {
         for d in &mut decisions {
             d.kept = true;
         }
     }
-    Ok(Plan { decisions, kept })
+    Ok(Plan {
+        decisions,
+        kept,
+        own: Vec::new(),
+        exact: false,
+    })
+}
+
+/// The side N of a square atlas for a layout of `scale` = sqrt(world area / UV area), from
+/// the texel size: `ceil(scale / texel)`, even, 16 to `max`; the texel size used, and
+/// whether the atlas limit made it coarser than asked.
+pub(crate) fn square_side(scale: f64, texel_size: f64, max: u32) -> (u32, f64, bool) {
+    let wanted = (scale / texel_size).ceil();
+    let mut side = if wanted.is_finite() {
+        wanted.clamp(16.0, f64::from(max)) as u32
+    } else {
+        16
+    };
+    side += side % 2;
+    side = side.min(max - max % 2);
+    let used = scale / f64::from(side);
+    (
+        side,
+        used,
+        used > texel_size * (1.0 + 1e-12) && wanted > f64::from(side),
+    )
 }
 
 /// The area of the fan triangles (v0 vk vk+1) of a polygon's UVs (sum of absolute areas).

@@ -1,7 +1,7 @@
 //! Image files for a lightmap: linear float EXR (exact) and 8-bit sRGB-encoded PNG with a
 //! scale (for viewers: what `MOZ_lightmap` points at).
 
-use crate::{Lightmap, LightmapError, Texel};
+use crate::{AtlasRef, Lightmap, LightmapError, Texel};
 use std::io::Cursor;
 
 /// What the EXR's `comments` attribute says about its content.
@@ -21,9 +21,14 @@ pub struct PngLightmap {
 /// lose ~1e-3 relative), lossless ZIP compression, written on one thread so the bytes never
 /// depend on the thread count.
 pub fn encode_exr(lightmap: &Lightmap) -> Result<Vec<u8>, LightmapError> {
+    encode_exr_atlas(lightmap.atlas(0))
+}
+
+/// [`encode_exr`] of one atlas ([`Lightmap::atlas`]).
+pub fn encode_exr_atlas(lightmap: AtlasRef) -> Result<Vec<u8>, LightmapError> {
     use exr::prelude::*;
     let width = lightmap.width as usize;
-    let texels = &lightmap.texels;
+    let texels = lightmap.texels;
     let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
         let t = texels[y * width + x];
         (t[0], t[1], t[2])
@@ -67,11 +72,16 @@ pub fn srgb_to_linear(v: f64) -> f64 {
 /// The lightmap as an 8-bit RGB PNG: each texel is `H / scale`, sRGB-encoded (more of the
 /// 256 levels go to the dark end, as for any colour texture; viewers must decode it as sRGB).
 pub fn encode_png(lightmap: &Lightmap) -> Result<PngLightmap, LightmapError> {
+    encode_png_atlas(lightmap.atlas(0))
+}
+
+/// [`encode_png`] of one atlas ([`Lightmap::atlas`]), scaled to its own brightest texel.
+pub fn encode_png_atlas(lightmap: AtlasRef) -> Result<PngLightmap, LightmapError> {
     use image::ImageEncoder;
     let max = lightmap
         .texels
         .iter()
-        .zip(&lightmap.coverage)
+        .zip(lightmap.coverage)
         .filter(|(_, c)| !matches!(c, Texel::Unused))
         .flat_map(|(t, _)| t.iter().copied())
         .fold(0.0f32, f32::max);

@@ -344,6 +344,31 @@ impl Field {
     }
 }
 
+impl Field {
+    /// Flat reconstruction (`Shading::Flat`): which of the polygon's own elements, counted
+    /// from its first in the mesher's order, holds grid parameters `p` (see
+    /// [`Field::params`]); outside the polygon, the nearest cell's, as
+    /// [`Field::value_at_params`] extends. Quads: row-major cells. Triangles: per row k the
+    /// "up" triangle of cell i, then its "down" neighbour (row k starts at n² − (n − k)²).
+    pub(crate) fn element_at_params(&self, p: DVec2) -> u32 {
+        match self.grid {
+            Grid::Quad { nu, nv, .. } => {
+                let i = clamp_cell(p.x * f64::from(nu), nu);
+                let j = clamp_cell(p.y * f64::from(nv), nv);
+                j * nu + i
+            }
+            Grid::Triangle { n, .. } => {
+                let (x, y) = (p.x * f64::from(n), p.y * f64::from(n));
+                let k = clamp_cell(y, n);
+                let i = clamp_cell(x, n - k);
+                let (fx, fy) = (x - f64::from(i), y - f64::from(k));
+                let down = fx + fy > 1.0 && i + 1 < n - k;
+                n * n - (n - k) * (n - k) + 2 * i + u32::from(down)
+            }
+        }
+    }
+}
+
 /// For each polygon, the other polygons that are coplanar with it (same facing, within
 /// `tol`), of the same material, and whose bounding boxes touch its own (sweep over x).
 fn coplanar_neighbours(polygons: &[Polygon], fields: &[Field], tol: f64) -> Vec<Vec<usize>> {

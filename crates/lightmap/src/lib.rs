@@ -1,23 +1,31 @@
 //! Lightmaps for a radiosity bake: charts (one per polygon; grouped across smooth, connected
 //! surfaces above [`GROUPED_ABOVE`] polygons where that at least halves the charts; or the input's own `TEXCOORD_1` kept,
-//! [`UvMode`]) packed into one atlas, and per-texel irradiance reconstructed from the element
-//! solution, ready to be written as a linear EXR and an 8-bit PNG. Not here: several atlases
-//! (one atlas holds every chart, made coarser until it fits), unwrapping of curved charts
-//! (grouped charts are projected), alpha cut-outs.
+//! [`UvMode`]: the whole scene's as it is, or with `Auto` each usable primitive's in a region
+//! of its own beside generated charts) packed into one atlas — or, when they do not fit one at the texel size, into
+//! several ([`Options::max_atlases`], whole primitives per atlas, [`Lightmap::atlases`]) —
+//! and per-texel irradiance reconstructed from the element solution, ready to be written as
+//! a linear EXR and an 8-bit PNG per atlas. Not here: unwrapping of curved charts (grouped
+//! charts are projected), splitting one primitive across atlases (a primitive too large for
+//! one atlas makes the texels coarser), alpha cut-outs.
 //!
-//! Public API: [`build`] with [`Options`] → [`Lightmap`]; [`encode_exr`], [`encode_png`].
+//! Public API: [`build`] / [`build_with`] with [`Options`] → [`Lightmap`] (its atlases:
+//! [`Lightmap::atlases`], each chart's [`Chart::atlas`]); [`encode_exr`], [`encode_png`]
+//! (the first atlas), [`encode_exr_atlas`], [`encode_png_atlas`] (any).
 //!
 //! What a texel holds: the **irradiance** H, the light arriving at the surface, in the bake's
 //! intensity units (those of emission e and radiosity b), so that `b = e + ρ H`. Engines
 //! multiply a lightmap by their own albedo; a lightmap of b would apply ρ twice.
 //!
-//! How: per-element H is smoothed to the element grid's vertices (`ElementMesh::smooth`, the
-//! vertex bake's smoothing); vertices on edges shared with coplanar polygons of the same
-//! material are welded (averaged) so those charts agree along the edge; each texel whose
-//! centre maps to a surface point through the chart gets the grid's interpolant there
-//! (bilinear on a quad's elements, linear on a triangle's). Texels around a chart copy their
-//! nearest chart texel, far enough that bilinear filtering at full resolution and at the first
-//! mip level reads only the chart's own values.
+//! How ([`Shading::Smooth`], the default): per-element H is smoothed to the element grid's
+//! vertices (`ElementMesh::smooth`, the vertex bake's smoothing); vertices on edges shared with
+//! coplanar polygons of the same material are welded (averaged) so those charts agree along
+//! the edge; each texel whose centre maps to a surface point through the chart gets the grid's
+//! interpolant there (bilinear on a quad's elements, linear on a triangle's). With
+//! [`Shading::Flat`] (`--shading flat`) each such texel holds the H of the element its centre
+//! maps into instead, so bilinear sampling at an element's centre reads exactly that element's
+//! H once elements span at least 2 texels each way (steps at element edges, as the flat vertex
+//! bake shows). Texels around a chart copy their nearest chart texel, far enough that bilinear
+//! filtering at full resolution and at the first mip level reads only the chart's own values.
 //!
 //! Layout rules ([`chart`]): a quad becomes a rectangle with its true aspect, a triangle a right
 //! triangle of its area so two share a rectangle; every chart has [`PADDING`] texels of its own
@@ -39,10 +47,11 @@ mod group;
 mod pack;
 mod raster;
 
-pub use authored::{AuthoredUv, UvDecision, UvMode, MIN_PADDING};
+pub use authored::{AuthoredUv, UvDecision, UvMode, MIN_PADDING, OWN_ATLAS, OWN_REGION};
 pub use chart::{PADDING, PAIR_GAP};
 pub use encode::{
-    encode_exr, encode_png, linear_to_srgb, srgb_to_linear, PngLightmap, EXR_COMMENT,
+    encode_exr, encode_exr_atlas, encode_png, encode_png_atlas, linear_to_srgb, srgb_to_linear,
+    PngLightmap, EXR_COMMENT,
 };
 pub use group::{CHART_CONE_DEGREES, GROUPED_ABOVE};
 pub use raster::DILATION_RADIUS;
@@ -72,6 +81,47 @@ pub struct Options {
     pub texel_size: f64,
     /// Largest atlas side, in texels (≥ 16).
     pub max_size: u32,
+    /// How texels are made from the per-element values (`--shading`).
+    pub shading: Shading,
+    /// Most atlases (≥ 1): when the charts at the requested texel size do not fit one
+    /// `max_size` atlas, whole primitives are packed into several (`--lightmap-atlases`)
+    /// before the texel size is made coarser.
+    pub max_atlases: u32,
+}
+
+/// Default `--lightmap-atlases`.
+pub const DEFAULT_MAX_ATLASES: u32 = 16;
+
+/// How texels are reconstructed from the per-element values (`--shading`, as for the
+/// vertex bake).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Shading {
+    /// The smoothed, welded field: the vertex bake's smoothing (`ElementMesh::smooth`),
+    /// interpolated over the element grid, so the light has no steps at element edges.
+    #[default]
+    Smooth,
+    /// Each texel holds the value of the element its centre maps to (outside the polygon, in
+    /// the footprint's rim: the nearest element's), gutters dilated as for `Smooth`. Bilinear
+    /// sampling at a point at least one texel inside its element reads exactly that
+    /// element's H (an element centre, once elements span ≥ 2 texels each way).
+    Flat,
+}
+
+/// Per-element values and each polygon's first element, for [`Shading::Flat`].
+#[derive(Clone, Debug, PartialEq)]
+struct Flat {
+    elements: Vec<[f64; 3]>,
+    first: Vec<u32>,
+}
+
+fn source<'a>(flat: &'a Option<Flat>, vertex_values: &'a [[f64; 3]]) -> raster::Source<'a> {
+    match flat {
+        Some(f) => raster::Source::Flat {
+            elements: &f.elements,
+            first: &f.first,
+        },
+        None => raster::Source::Smooth(vertex_values),
+    }
 }
 
 /// What one texel of the atlas is.
@@ -106,6 +156,27 @@ pub struct Chart {
     /// rectangle, the other one. Regions never overlap. For a kept authored layout: the
     /// chart's bounding box in whole texels (neighbours in one island share edges).
     pub region: Rect,
+    /// The atlas it is in (0: the [`Lightmap`]'s own texels; k ≥ 1: `more[k − 1]`).
+    pub atlas: u32,
+}
+
+/// A second or later atlas of a [`Lightmap`] (the first is the lightmap's own fields).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Atlas {
+    pub width: u32,
+    pub height: u32,
+    /// Linear irradiance H per texel, row-major from the top-left.
+    pub texels: Vec<[f32; 3]>,
+    pub coverage: Vec<Texel>,
+}
+
+/// One atlas of a [`Lightmap`], borrowed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AtlasRef<'a> {
+    pub width: u32,
+    pub height: u32,
+    pub texels: &'a [[f32; 3]],
+    pub coverage: &'a [Texel],
 }
 
 /// Numbers about a built lightmap.
@@ -125,11 +196,14 @@ pub struct Stats {
     /// Charts made: one per polygon, or per group above [`GROUPED_ABOVE`] polygons (when
     /// grouping at least halves the count); 0 for a kept authored layout.
     pub charts: usize,
+    /// Atlases (1 unless the charts did not fit one at the texel size).
+    pub atlases: usize,
 }
 
 /// A built lightmap: the atlas of irradiance and where every polygon is in it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Lightmap {
+    /// The first atlas (see [`Lightmap::atlases`] for all).
     pub width: u32,
     pub height: u32,
     /// World units per texel used (≥ the requested one).
@@ -138,6 +212,8 @@ pub struct Lightmap {
     /// Linear irradiance H per texel, row-major from the top-left.
     pub texels: Vec<[f32; 3]>,
     pub coverage: Vec<Texel>,
+    /// The second and later atlases, when the charts needed several.
+    pub more: Vec<Atlas>,
     /// One per polygon, in polygon order.
     pub charts: Vec<Chart>,
     /// The smoothed, welded H per mesh vertex the texels were reconstructed from.
@@ -148,7 +224,10 @@ pub struct Lightmap {
     pub uv_decisions: Vec<UvDecision>,
     /// Things the user should know (authored padding under [`MIN_PADDING`] texels).
     pub warnings: Vec<String>,
+    /// How the texels were made.
+    pub shading: Shading,
     fields: Vec<Field>,
+    flat: Option<Flat>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -194,14 +273,28 @@ pub fn plan_uv(
     mode: UvMode,
     options: &Options,
 ) -> Result<Vec<UvDecision>, LightmapError> {
-    Ok(authored::plan(
+    let plan = authored::plan(
         polygons,
         authored,
         mode,
         options.texel_size,
         options.max_size,
-    )?
-    .decisions)
+    )?;
+    if plan.exact {
+        too_many_exact(plan.own.len(), options)?;
+    }
+    Ok(plan.decisions)
+}
+
+/// `keep` with an atlas per primitive: refused past `Options::max_atlases`.
+fn too_many_exact(primitives: usize, options: &Options) -> Result<(), LightmapError> {
+    if primitives > options.max_atlases as usize {
+        return Err(LightmapError::AuthoredUv(format!(
+            "{primitives} primitives' TEXCOORD_1 overlap each other: keeping each needs an atlas of its own, more than --lightmap-atlases {}",
+            options.max_atlases
+        )));
+    }
+    Ok(())
 }
 
 /// [`build`] with the input's authored `TEXCOORD_1` (`AuthoredUv::from_scene`) as the
@@ -249,6 +342,10 @@ pub fn build_with(
     let fields = fields(polygons, mesh)?;
     let (vertex_values, welded_vertices) =
         smooth_and_weld(polygons, mesh, &fields, element_irradiance);
+    let flat = (options.shading == Shading::Flat).then(|| Flat {
+        elements: element_irradiance.to_vec(),
+        first: mesh.patches.iter().map(|p| p.elements.start).collect(),
+    });
 
     let plan = authored::plan(
         polygons,
@@ -262,39 +359,63 @@ pub fn build_with(
             kept,
             options,
             fields,
+            flat,
             vertex_values,
             welded_vertices,
             plan.decisions,
         ));
     }
-    // Grouped charts where they group: at least two polygons per chart on average, or more
-    // polygons than one etagere atlas takes as regions.
-    let groups = if polygons.len() > GROUPED_ABOVE {
-        Some(group::groups(polygons))
+    let layout = if plan.exact {
+        Some(exact_layout(polygons, &plan.own, options)?)
+    } else if !plan.own.is_empty() {
+        Some(mixed_layout(polygons, &plan.own, options)?)
     } else {
-        None
+        // Grouped charts where they group: at least two polygons per chart on average, or
+        // more polygons than one etagere atlas takes as regions.
+        let groups = (polygons.len() > GROUPED_ABOVE)
+            .then(|| group::groups(polygons))
+            .filter(|g| 2 * g.len() <= polygons.len() || polygons.len() > pack::MAX_REGIONS);
+        match groups {
+            Some(groups) => {
+                let all: Vec<usize> = (0..polygons.len()).collect();
+                Some(packed_layout(polygons, &[], &all, Some(groups), options)?)
+            }
+            None => None,
+        }
     };
-    if let Some(groups) =
-        groups.filter(|g| 2 * g.len() <= polygons.len() || polygons.len() > pack::MAX_REGIONS)
-    {
-        let layout = grouped_layout(polygons, groups, options)?;
+    // One chart per polygon: one atlas, or when that needs coarser texels several.
+    let fitted = match layout {
+        Some(_) => None,
+        None => Some(fit(polygons, options)?),
+    };
+    let layout = match (layout, &fitted) {
+        (Some(layout), _) => Some(layout),
+        (None, Some(f)) if f.3 > 0 && options.max_atlases > 1 => {
+            let all: Vec<usize> = (0..polygons.len()).collect();
+            Some(packed_layout(polygons, &[], &all, None, options)?)
+        }
+        _ => None,
+    };
+    if let Some(layout) = layout {
         return Ok(assemble(
             layout,
             options,
             fields,
+            flat,
             vertex_values,
             welded_vertices,
             plan.decisions,
         ));
     }
-    let (texel_size, regions, packing, reductions) = fit(polygons, options)?;
+    let (texel_size, regions, packing, reductions) =
+        fitted.ok_or_else(|| LightmapError::InvalidData("no layout".into()))?;
     let width = packing.width as usize;
     let mut texels = vec![[0.0f32; 3]; width * packing.height as usize];
     let mut coverage = vec![Texel::Unused; texels.len()];
     let mut charts: Vec<Option<Chart>> = vec![None; polygons.len()];
     let filled: Vec<raster::RegionTexels> = regions
         .par_iter()
-        .map(|region| raster::region_texels(region, &fields, &vertex_values))
+        .map(|region| raster::region_texels(region, &fields, source(&flat, &vertex_values)))
         .collect();
     for ((region, &(rx, ry)), block) in regions.iter().zip(&packing.positions).zip(&filled) {
         let rect = Rect {
@@ -316,6 +437,7 @@ pub fn build_with(
                 polygon: *polygon,
                 uv: uv.iter().map(|p| (*p + offset).to_array()).collect(),
                 region: rect,
+                atlas: 0,
             });
         }
     }
@@ -330,6 +452,7 @@ pub fn build_with(
         welded_vertices,
         reductions,
         charts: polygons.len(),
+        atlases: 1,
         ..Stats::default()
     };
     for (k, t) in coverage.iter().enumerate() {
@@ -356,12 +479,15 @@ pub fn build_with(
         requested_texel_size: options.texel_size,
         texels,
         coverage,
+        more: Vec::new(),
         charts,
         vertex_values,
         stats,
         uv_decisions: plan.decisions,
         warnings: Vec::new(),
+        shading: options.shading,
         fields,
+        flat,
     })
 }
 
@@ -371,31 +497,13 @@ fn kept_lightmap(
     kept: authored::Kept,
     options: &Options,
     fields: Vec<Field>,
+    flat: Option<Flat>,
     vertex_values: Vec<[f64; 3]>,
     welded_vertices: usize,
     uv_decisions: Vec<UvDecision>,
 ) -> Lightmap {
     let side = kept.side;
-    let regions = kept
-        .charts
-        .iter()
-        .map(|uv| {
-            let (lo, hi) = uv.iter().fold(
-                (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
-                |(lo, hi), q| (lo.min(*q), hi.max(*q)),
-            );
-            let x = lo.x.floor().max(0.0) as u32;
-            let y = lo.y.floor().max(0.0) as u32;
-            let right = (hi.x.ceil().max(0.0) as u32).clamp(x, side);
-            let bottom = (hi.y.ceil().max(0.0) as u32).clamp(y, side);
-            Rect {
-                x,
-                y,
-                width: right - x,
-                height: bottom - y,
-            }
-        })
-        .collect();
+    let regions = kept.charts.iter().map(|uv| texel_box(uv, side)).collect();
     let warnings = kept
         .padding
         .map(|gap| {
@@ -405,10 +513,11 @@ fn kept_lightmap(
         })
         .into_iter()
         .collect();
+    let atlas = vec![0; kept.charts.len()];
     assemble(
         Assembly {
-            width: side,
-            height: side,
+            pages: vec![(side, side)],
+            atlas,
             texel_size: kept.texel_size,
             reductions: kept.reductions,
             charts: kept.charts,
@@ -418,16 +527,91 @@ fn kept_lightmap(
         },
         options,
         fields,
+        flat,
         vertex_values,
         welded_vertices,
         uv_decisions,
     )
 }
 
+/// The bounding box in whole texels of a texel-space chart, inside a `side` atlas.
+fn texel_box(uv: &[DVec2], side: u32) -> Rect {
+    let (lo, hi) = uv.iter().fold(
+        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+        |(lo, hi), q| (lo.min(*q), hi.max(*q)),
+    );
+    let x = (lo.x.floor().max(0.0) as u32).min(side);
+    let y = (lo.y.floor().max(0.0) as u32).min(side);
+    let right = (hi.x.ceil().max(0.0) as u32).clamp(x, side);
+    let bottom = (hi.y.ceil().max(0.0) as u32).clamp(y, side);
+    Rect {
+        x,
+        y,
+        width: right - x,
+        height: bottom - y,
+    }
+}
+
+/// `--lightmap-uv keep` when primitives' TEXCOORD_1 overlap each other but each one's is
+/// usable: an atlas per primitive, square, its side from the texel size over the
+/// primitive's UV area (as for a whole kept layout), TEXCOORD_1 unchanged. The lightmap's
+/// texel size is the coarsest atlas's.
+fn exact_layout(
+    polygons: &[Polygon],
+    own: &[authored::Own],
+    options: &Options,
+) -> Result<Assembly, LightmapError> {
+    too_many_exact(own.len(), options)?;
+    let max = options.max_size;
+    let n = polygons.len();
+    let mut charts = vec![Vec::new(); n];
+    let mut regions = vec![texel_box(&[], 0); n];
+    let mut atlas = vec![0; n];
+    let (mut pages, mut warnings) = (Vec::new(), Vec::new());
+    let (mut texel, mut reductions) = (0.0f64, 0);
+    for (k, o) in own.iter().enumerate() {
+        let (side, used, reduced) =
+            authored::square_side(o.world_per_uv.sqrt(), options.texel_size, max);
+        reductions += u32::from(reduced);
+        texel = texel.max(used);
+        let s = f64::from(side);
+        for (&p, t) in o.polygons.iter().zip(&o.uv) {
+            charts[p] = t.iter().map(|q| *q * s).collect();
+            regions[p] = texel_box(&charts[p], side);
+            atlas[p] = k as u32;
+        }
+        let uv: Vec<&[DVec2]> = o.uv.iter().map(Vec::as_slice).collect();
+        if let Some(gap) = authored::check_layout(&uv, Some(s)).padding {
+            warnings.push(format!(
+                "{}: its TEXCOORD_1 islands are {gap:.2} texels apart at {side}×{side} (under {MIN_PADDING}): filtering mixes their light",
+                o.label
+            ));
+        }
+        pages.push((side, side));
+    }
+    if let Some(p) = charts.iter().position(Vec::is_empty) {
+        return Err(LightmapError::InvalidData(format!(
+            "polygon {p} is in no kept primitive"
+        )));
+    }
+    Ok(Assembly {
+        pages,
+        atlas,
+        texel_size: texel,
+        reductions,
+        charts,
+        regions,
+        chart_count: 0,
+        warnings,
+    })
+}
+
 /// An atlas laid out by per-polygon texel-space charts, before its texels are made.
 struct Assembly {
-    width: u32,
-    height: u32,
+    /// Each atlas's size.
+    pages: Vec<(u32, u32)>,
+    /// Per polygon, its atlas.
+    atlas: Vec<u32>,
     texel_size: f64,
     reductions: u32,
     charts: Vec<Vec<DVec2>>,
@@ -440,83 +624,244 @@ fn assemble(
     a: Assembly,
     options: &Options,
     fields: Vec<Field>,
+    flat: Option<Flat>,
     vertex_values: Vec<[f64; 3]>,
     welded_vertices: usize,
     uv_decisions: Vec<UvDecision>,
 ) -> Lightmap {
-    let block = raster::atlas_texels(a.width, a.height, &a.charts, &fields, &vertex_values);
-    let n = a.width as usize;
     let mut stats = Stats {
         welded_vertices,
         reductions: a.reductions,
         charts: a.chart_count,
+        atlases: a.pages.len(),
         ..Stats::default()
     };
-    for (k, t) in block.coverage.iter().enumerate() {
-        match t {
-            Texel::Chart(p) => {
-                stats.chart_texels += 1;
-                let c = DVec2::new((k % n) as f64 + 0.5, (k / n) as f64 + 0.5);
-                stats.interior_texels += u64::from(raster::inside(c, &a.charts[*p as usize]));
+    let mut total = 0u64;
+    let mut atlases = Vec::with_capacity(a.pages.len());
+    for (page, &(width, height)) in a.pages.iter().enumerate() {
+        // This atlas's charts; the others' are empty (skipped).
+        let charts: Vec<Vec<DVec2>> = a
+            .charts
+            .iter()
+            .zip(&a.atlas)
+            .map(|(c, &k)| {
+                if k as usize == page {
+                    c.clone()
+                } else {
+                    Vec::new()
+                }
+            })
+            .collect();
+        let block = raster::atlas_texels(
+            width,
+            height,
+            &charts,
+            &fields,
+            source(&flat, &vertex_values),
+        );
+        let n = width as usize;
+        for (k, t) in block.coverage.iter().enumerate() {
+            match t {
+                Texel::Chart(p) => {
+                    stats.chart_texels += 1;
+                    let c = DVec2::new((k % n) as f64 + 0.5, (k / n) as f64 + 0.5);
+                    stats.interior_texels += u64::from(raster::inside(c, &charts[*p as usize]));
+                }
+                Texel::Gutter(_) => stats.gutter_texels += 1,
+                Texel::Unused => {}
             }
-            Texel::Gutter(_) => stats.gutter_texels += 1,
-            Texel::Unused => {}
         }
+        total += block.coverage.len() as u64;
+        atlases.push(Atlas {
+            width,
+            height,
+            texels: block.values,
+            coverage: block.coverage,
+        });
     }
-    stats.occupancy = stats.chart_texels as f64 / block.coverage.len() as f64;
+    stats.occupancy = stats.chart_texels as f64 / total.max(1) as f64;
     let charts = a
         .charts
         .iter()
         .zip(&a.regions)
+        .zip(&a.atlas)
         .enumerate()
-        .map(|(polygon, (uv, region))| Chart {
+        .map(|(polygon, ((uv, region), &atlas))| Chart {
             polygon,
             uv: uv.iter().map(|p| p.to_array()).collect(),
             region: *region,
+            atlas,
         })
         .collect();
+    let mut pages = atlases.into_iter();
+    let first = pages.next().unwrap_or(Atlas {
+        width: 0,
+        height: 0,
+        texels: Vec::new(),
+        coverage: Vec::new(),
+    });
     Lightmap {
-        width: a.width,
-        height: a.height,
+        width: first.width,
+        height: first.height,
         texel_size: a.texel_size,
         requested_texel_size: options.texel_size,
-        texels: block.values,
-        coverage: block.coverage,
+        texels: first.texels,
+        coverage: first.coverage,
+        more: pages.collect(),
         charts,
         vertex_values,
         stats,
         uv_decisions,
         warnings: a.warnings,
+        shading: options.shading,
         fields,
+        flat,
     }
 }
 
-/// Grouped charts ([`group`]) packed into one atlas at the requested texel size, or coarser
-/// until they fit.
-fn grouped_layout(
+/// One rectangle for the packer: its charts (polygon, texel coordinates inside it).
+struct Item {
+    width: u32,
+    height: u32,
+    charts: Vec<(usize, Vec<DVec2>)>,
+}
+
+/// A primitive's own TEXCOORD_1 at `texels_per_unit` (world): scaled by
+/// sqrt(world area / UV area) × texels per unit, moved so its UV bounding box starts
+/// [`PADDING`] texels inside the rectangle; `None` when it does not fit in u32. Also the
+/// scale (texels per UV unit).
+fn own_item(own: &authored::Own, texels_per_unit: f64) -> Option<(Item, f64)> {
+    let s = own.world_per_uv.sqrt() * texels_per_unit;
+    let (lo, hi) = own.uv.iter().flatten().fold(
+        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+        |(lo, hi), q| (lo.min(*q), hi.max(*q)),
+    );
+    let size = ((hi - lo) * s).ceil().max(DVec2::ONE);
+    let limit = f64::from(u32::MAX / 4);
+    if !(size.x.is_finite() && size.y.is_finite() && size.x <= limit && size.y <= limit) {
+        return None;
+    }
+    let even = |n: u32| n + n % 2;
+    let p = DVec2::splat(f64::from(PADDING));
+    let charts = own
+        .polygons
+        .iter()
+        .zip(&own.uv)
+        .map(|(&k, t)| (k, t.iter().map(|q| (*q - lo) * s + p).collect()))
+        .collect();
+    Some((
+        Item {
+            width: even(size.x as u32 + 2 * PADDING),
+            height: even(size.y as u32 + 2 * PADDING),
+            charts,
+        },
+        s,
+    ))
+}
+
+/// `--lightmap-uv auto` when only some primitives' TEXCOORD_1 is usable: each of those
+/// primitives is one rectangle of its own layout ([`own_item`]), the other polygons get
+/// generated charts (grouped as in [`build_with`], or one per polygon).
+fn mixed_layout(
     polygons: &[Polygon],
-    groups: Vec<group::Group>,
+    own: &[authored::Own],
     options: &Options,
 ) -> Result<Assembly, LightmapError> {
+    let mut owned = vec![false; polygons.len()];
+    for o in own {
+        for &k in &o.polygons {
+            owned[k] = true;
+        }
+    }
+    let rest: Vec<usize> = (0..polygons.len()).filter(|&k| !owned[k]).collect();
+    let groups = if rest.len() > GROUPED_ABOVE {
+        let sub: Vec<Polygon> = rest.iter().map(|&k| polygons[k].clone()).collect();
+        Some(group::groups(&sub))
+            .filter(|g| 2 * g.len() <= sub.len() || sub.len() > pack::MAX_REGIONS)
+    } else {
+        None
+    };
+    packed_layout(polygons, own, &rest, groups, options)
+}
+
+/// Rectangles skyline-packed into one atlas at the requested texel size, or coarser until
+/// they fit: each `own` primitive's ([`own_item`]), and for the polygons `rest` the
+/// grouped charts `groups` (indices into `rest`), or without groups one chart per polygon
+/// (`chart::layout`).
+fn packed_layout(
+    polygons: &[Polygon],
+    own: &[authored::Own],
+    rest: &[usize],
+    groups: Option<Vec<group::Group>>,
+    options: &Options,
+) -> Result<Assembly, LightmapError> {
+    let sub: Vec<Polygon> = if groups.is_none() {
+        rest.iter().map(|&k| polygons[k].clone()).collect()
+    } else {
+        Vec::new()
+    };
+    let chart_count = groups.as_ref().map_or(sub.len(), Vec::len);
     let max = options.max_size;
     let area: f64 = polygons.iter().map(polygon_area).sum();
-    let floor = (area / (f64::from(max) * f64::from(max))).sqrt();
+    // No packing beats the polygons' own area over every atlas allowed.
+    let room = f64::from(max) * f64::from(max) * f64::from(options.max_atlases.max(1));
+    let floor = (area / room).sqrt();
     let mut texel = options.texel_size.max(floor);
     let mut reductions = u32::from(texel > options.texel_size);
     for _ in 0..64 {
-        let Some(regions) = groups
-            .iter()
-            .map(|g| group::region(g, 1.0 / texel))
-            .collect::<Option<Vec<_>>>()
-        else {
+        let per_unit = 1.0 / texel;
+        let mut items = Vec::new();
+        let mut scales = Vec::new();
+        let mut fits = true;
+        for o in own {
+            match own_item(o, per_unit) {
+                Some((item, s)) => {
+                    items.push(item);
+                    scales.push(s);
+                }
+                None => fits = false,
+            }
+        }
+        match &groups {
+            Some(groups) => {
+                for g in groups {
+                    match group::region(g, per_unit) {
+                        Some((width, height, uv)) => items.push(Item {
+                            width,
+                            height,
+                            charts: g.polygons.iter().map(|&p| rest[p]).zip(uv).collect(),
+                        }),
+                        None => fits = false,
+                    }
+                }
+            }
+            None if sub.is_empty() => {}
+            None => match chart::layout(&sub, per_unit) {
+                Some(regions) => items.extend(regions.into_iter().map(|r| Item {
+                    width: r.width,
+                    height: r.height,
+                    charts: r.charts.into_iter().map(|(p, uv)| (rest[p], uv)).collect(),
+                })),
+                None => fits = false,
+            },
+        }
+        if !fits {
             texel *= 2.0;
             reductions += 1;
             continue;
+        }
+        let sizes: Vec<(u32, u32)> = items.iter().map(|r| (r.width, r.height)).collect();
+        let pages = match pack::pack_skyline(&sizes, max) {
+            Some(packing) => Ok(vec![(packing, (0..items.len()).collect())]),
+            None if options.max_atlases > 1 => {
+                atlases(&items, polygons, max, options.max_atlases as usize)
+            }
+            None => Err(coarser(&sizes, max)),
         };
-        let sizes: Vec<(u32, u32)> = regions.iter().map(|r| (r.0, r.1)).collect();
-        if let Some(packing) = pack::pack_skyline(&sizes, max) {
+        if let Ok(pages) = &pages {
             let mut charts = vec![Vec::new(); polygons.len()];
-            let mut rects = vec![
+            let mut atlas = vec![0; polygons.len()];
+            let mut regions = vec![
                 Rect {
                     x: 0,
                     y: 0,
@@ -525,36 +870,154 @@ fn grouped_layout(
                 };
                 polygons.len()
             ];
-            for ((g, (w, h, uv)), &(x, y)) in groups.iter().zip(regions).zip(&packing.positions) {
-                let offset = DVec2::new(f64::from(x), f64::from(y));
-                for (&p, t) in g.polygons.iter().zip(uv) {
-                    charts[p] = t.iter().map(|q| *q + offset).collect();
-                    rects[p] = Rect {
-                        x,
-                        y,
-                        width: w,
-                        height: h,
-                    };
+            for (page, (packing, members)) in pages.iter().enumerate() {
+                for (&i, &(x, y)) in members.iter().zip(&packing.positions) {
+                    let item = &items[i];
+                    let offset = DVec2::new(f64::from(x), f64::from(y));
+                    for (p, uv) in &item.charts {
+                        charts[*p] = uv.iter().map(|q| *q + offset).collect();
+                        atlas[*p] = page as u32;
+                        regions[*p] = Rect {
+                            x,
+                            y,
+                            width: item.width,
+                            height: item.height,
+                        };
+                    }
                 }
             }
+            let warnings = own
+                .iter()
+                .zip(&scales)
+                .filter_map(|(o, &s)| {
+                    let uv: Vec<&[DVec2]> = o.uv.iter().map(Vec::as_slice).collect();
+                    authored::check_layout(&uv, Some(s)).padding.map(|gap| {
+                        format!(
+                            "{}: its TEXCOORD_1 islands are {gap:.2} texels apart in its atlas region (under {MIN_PADDING}): filtering mixes their light",
+                            o.label
+                        )
+                    })
+                })
+                .collect();
             return Ok(Assembly {
-                width: packing.width,
-                height: packing.height,
+                pages: pages.iter().map(|(p, _)| (p.width, p.height)).collect(),
+                atlas,
                 texel_size: texel,
                 reductions,
                 charts,
-                regions: rects,
-                chart_count: groups.len(),
-                warnings: Vec::new(),
+                regions,
+                chart_count,
+                warnings,
             });
         }
-        texel *= coarser(&sizes, max);
+        texel *= pages.err().unwrap_or(1.05);
         reductions += 1;
-        if sizes.len() as u64 * 64 > u64::from(max) * u64::from(max) {
+        let room = u64::from(max) * u64::from(max) * u64::from(options.max_atlases.max(1));
+        if sizes.len() as u64 * 64 > room {
             return Err(LightmapError::TooLarge { max });
         }
     }
     Err(LightmapError::TooLarge { max })
+}
+
+/// `items` split into at most `most` atlases of at most `max` texels a side, whole primitives
+/// per atlas (items that hold polygons of one primitive instance stay together: the output
+/// draws a primitive with one lightmap): largest first into the first atlas with room
+/// (70% of its area), then each atlas packed, halved while it does not fit. Per atlas its
+/// packing and its items (in the order packed); when a primitive alone does not fit or more
+/// atlases would be needed, how much coarser the texels should get ([`coarser`] of the
+/// primitive that did not fit, or of the whole area over `most` atlases).
+fn atlases(
+    items: &[Item],
+    polygons: &[Polygon],
+    max: u32,
+    most: usize,
+) -> Result<Vec<(pack::Packing, Vec<usize>)>, f64> {
+    use std::collections::{BTreeMap, VecDeque};
+    // Items joined through the primitives they hold.
+    let mut parent: Vec<usize> = (0..items.len()).collect();
+    fn root(parent: &mut [usize], mut k: usize) -> usize {
+        while parent[k] != k {
+            parent[k] = parent[parent[k]];
+            k = parent[k];
+        }
+        k
+    }
+    let mut first: BTreeMap<(usize, usize, usize), usize> = BTreeMap::new();
+    for (i, item) in items.iter().enumerate() {
+        for (p, _) in &item.charts {
+            let o = polygons[*p].origin;
+            let other = *first.entry((o.node, o.mesh, o.primitive)).or_insert(i);
+            let (a, b) = (root(&mut parent, i), root(&mut parent, other));
+            if a != b {
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let mut units: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    for i in 0..items.len() {
+        units.entry(root(&mut parent, i)).or_default().push(i);
+    }
+    let area = |i: &usize| f64::from(items[*i].width) * f64::from(items[*i].height);
+    let mut units: Vec<(f64, Vec<usize>)> = units
+        .into_values()
+        .map(|u| (u.iter().map(area).sum(), u))
+        .collect();
+    units.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1[0].cmp(&b.1[0])));
+    let budget = 0.7 * f64::from(max) * f64::from(max);
+    let mut bins: Vec<(f64, Vec<usize>)> = Vec::new();
+    for (a, members) in units {
+        match bins.iter_mut().find(|b| b.0 + a <= budget) {
+            Some(bin) => {
+                bin.0 += a;
+                bin.1.extend(members);
+            }
+            None => bins.push((a, members)),
+        }
+        if bins.len() > most {
+            return Err(too_many(items, max, most));
+        }
+    }
+    // Pack each atlas; one that does not fit is split in two (whole units: the items of a
+    // unit are contiguous in its list).
+    let mut queue: VecDeque<Vec<usize>> = bins.into_iter().map(|b| b.1).collect();
+    let mut done = Vec::new();
+    while let Some(members) = queue.pop_front() {
+        let sizes: Vec<(u32, u32)> = members
+            .iter()
+            .map(|&i| (items[i].width, items[i].height))
+            .collect();
+        if let Some(packing) = pack::pack_skyline(&sizes, max) {
+            done.push((packing, members));
+            continue;
+        }
+        // Split between units, near the middle.
+        let roots: Vec<usize> = members.iter().map(|&i| root(&mut parent, i)).collect();
+        let middle = members.len() / 2;
+        let Some(cut) = (1..members.len())
+            .filter(|&k| roots[k] != roots[k - 1])
+            .min_by_key(|&k| k.abs_diff(middle))
+        else {
+            return Err(coarser(&sizes, max)); // one primitive alone
+        };
+        queue.push_back(members[..cut].to_vec());
+        queue.push_back(members[cut..].to_vec());
+        if done.len() + queue.len() > most {
+            return Err(too_many(items, max, most));
+        }
+    }
+    Ok(done)
+}
+
+/// How much coarser texels must get for `items` to fill at most `most` atlases of `max`
+/// texels a side at 70%: by area, at least 5%, at most 4×.
+fn too_many(items: &[Item], max: u32, most: usize) -> f64 {
+    let area: f64 = items
+        .iter()
+        .map(|r| f64::from(r.width) * f64::from(r.height))
+        .sum();
+    let room = 0.7 * f64::from(max) * f64::from(max) * most as f64;
+    (area / room).sqrt().clamp(1.05, 4.0)
 }
 
 fn fields(polygons: &[Polygon], mesh: &ElementMesh) -> Result<Vec<Field>, LightmapError> {
@@ -662,11 +1125,40 @@ pub(crate) fn polygon_area(p: &Polygon) -> f64 {
 impl Lightmap {
     /// `TEXCOORD_1` of vertex `vertex` of polygon `polygon` (u right, v down, in [0, 1]).
     pub fn texcoord(&self, polygon: usize, vertex: usize) -> [f32; 2] {
-        let p = self.charts[polygon].uv[vertex];
+        let chart = &self.charts[polygon];
+        let p = chart.uv[vertex];
+        let atlas = self.atlas(chart.atlas as usize);
         [
-            (p[0] / f64::from(self.width)) as f32,
-            (p[1] / f64::from(self.height)) as f32,
+            (p[0] / f64::from(atlas.width)) as f32,
+            (p[1] / f64::from(atlas.height)) as f32,
         ]
+    }
+
+    /// Atlas `k` (0: the lightmap's own texels; then [`Lightmap::more`]). Panics past the
+    /// last: `k` comes from a [`Chart::atlas`].
+    pub fn atlas(&self, k: usize) -> AtlasRef<'_> {
+        match k.checked_sub(1) {
+            None => AtlasRef {
+                width: self.width,
+                height: self.height,
+                texels: &self.texels,
+                coverage: &self.coverage,
+            },
+            Some(m) => {
+                let a = &self.more[m];
+                AtlasRef {
+                    width: a.width,
+                    height: a.height,
+                    texels: &a.texels,
+                    coverage: &a.coverage,
+                }
+            }
+        }
+    }
+
+    /// Every atlas, the first one first.
+    pub fn atlases(&self) -> Vec<AtlasRef<'_>> {
+        (0..=self.more.len()).map(|k| self.atlas(k)).collect()
     }
 
     /// Bilinear sample at texture coordinate `uv` (texel centres at (i + ½)/width, clamped to
@@ -675,11 +1167,12 @@ impl Lightmap {
         sample_bilinear(&self.texels, self.width, self.height, uv)
     }
 
-    /// The smoothed, welded irradiance at world point `point` of polygon `polygon`: what the
-    /// texels were reconstructed from.
+    /// The irradiance at world point `point` of polygon `polygon` that the texels were
+    /// reconstructed from: the smoothed, welded field, or for [`Shading::Flat`] the H of the
+    /// element there.
     pub fn irradiance_at(&self, polygon: usize, point: DVec3) -> [f64; 3] {
         let field = &self.fields[polygon];
-        field.value_at(field.to_plane(point), &self.vertex_values)
+        source(&self.flat, &self.vertex_values).at(polygon, field, field.to_plane(point))
     }
 }
 
@@ -834,6 +1327,8 @@ mod tests {
         let options = Options {
             texel_size: 0.02,
             max_size: 1024,
+            shading: Shading::Smooth,
+            max_atlases: 1,
         };
         let lightmap = build(&polygons, &mesh, &values, &options).expect("build");
         assert_eq!(lightmap.charts[0].region, lightmap.charts[1].region);

@@ -56,6 +56,31 @@ pub(crate) fn inside(c: DVec2, uv: &[DVec2]) -> bool {
     sides.iter().all(|&s| s >= 0.0) || sides.iter().all(|&s| s <= 0.0)
 }
 
+/// What a chart's texels are reconstructed from ([`crate::Shading`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Source<'a> {
+    /// Smoothed, welded values per mesh vertex, interpolated over the element grid.
+    Smooth(&'a [[f64; 3]]),
+    /// Each element's own value; `first[p]` is polygon p's first element.
+    Flat {
+        elements: &'a [[f64; 3]],
+        first: &'a [u32],
+    },
+}
+
+impl Source<'_> {
+    /// The value at plane point `q` of polygon `polygon` (its field `field`).
+    pub(crate) fn at(&self, polygon: usize, field: &Field, q: DVec2) -> [f64; 3] {
+        match *self {
+            Source::Smooth(values) => field.value_at(q, values),
+            Source::Flat { elements, first } => {
+                let local = field.element_at_params(field.params(q));
+                elements[(first[polygon] + local) as usize]
+            }
+        }
+    }
+}
+
 /// Barycentric coordinates of `c` in triangle (a, b, d).
 fn barycentric(c: DVec2, a: DVec2, b: DVec2, d: DVec2) -> [f64; 3] {
     let det = cross(b - a, d - a);
@@ -67,7 +92,14 @@ fn barycentric(c: DVec2, a: DVec2, b: DVec2, d: DVec2) -> [f64; 3] {
 /// The field at texel-space point `c` of a chart: through the glTF triangles (v0 v1 v2) and
 /// (v0 v2 v3) — the ones a renderer interpolates TEXCOORD_1 over — to the surface point, then
 /// the grid. Outside the chart the nearer triangle's affine map is extended. Clamped to ≥ 0.
-pub(crate) fn chart_value(c: DVec2, uv: &[DVec2], field: &Field, values: &[[f64; 3]]) -> [f64; 3] {
+pub(crate) fn chart_value(
+    c: DVec2,
+    uv: &[DVec2],
+    polygon: usize,
+    fields: &[Field],
+    source: Source,
+) -> [f64; 3] {
+    let field = &fields[polygon];
     let corners = &field.corners;
     let point = if uv.len() == 3 {
         let l = barycentric(c, uv[0], uv[1], uv[2]);
@@ -82,16 +114,12 @@ pub(crate) fn chart_value(c: DVec2, uv: &[DVec2], field: &Field, values: &[[f64;
             corners[0] * second[0] + corners[2] * second[1] + corners[3] * second[2]
         }
     };
-    field.value_at(point, values).map(|v| v.max(0.0))
+    source.at(polygon, field, point).map(|v| v.max(0.0))
 }
 
 /// Reconstructs one region: footprints first, then the gutter by nearest footprint texel
 /// (squared distance between centres; ties go to the first in row-major order).
-pub(crate) fn region_texels(
-    region: &Region,
-    fields: &[Field],
-    values: &[[f64; 3]],
-) -> RegionTexels {
+pub(crate) fn region_texels(region: &Region, fields: &[Field], source: Source) -> RegionTexels {
     let (w, h) = (region.width as usize, region.height as usize);
     let mut out = RegionTexels {
         values: vec![[0.0; 3]; w * h],
@@ -102,7 +130,7 @@ pub(crate) fn region_texels(
             let c = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
             for (polygon, uv) in &region.charts {
                 if in_footprint(c, uv) {
-                    let v = chart_value(c, uv, &fields[*polygon], values);
+                    let v = chart_value(c, uv, *polygon, fields, source);
                     out.values[y * w + x] = v.map(|v| v as f32);
                     out.coverage[y * w + x] = Texel::Chart(*polygon as u32);
                     break;
@@ -160,12 +188,15 @@ pub(crate) fn atlas_texels(
     height: u32,
     charts: &[Vec<DVec2>],
     fields: &[Field],
-    values: &[[f64; 3]],
+    source: Source,
 ) -> RegionTexels {
     use rayon::prelude::*;
     let (n, rows) = (width as usize, height as usize);
     let mut claim: Vec<(f64, u32)> = vec![(f64::INFINITY, u32::MAX); n * rows];
     for (p, uv) in charts.iter().enumerate() {
+        if uv.is_empty() {
+            continue; // in another atlas
+        }
         let (lo, hi) = uv.iter().fold(
             (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
             |(lo, hi), q| (lo.min(*q), hi.max(*q)),
@@ -204,7 +235,7 @@ pub(crate) fn atlas_texels(
                     continue;
                 }
                 let c = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
-                let v = chart_value(c, &charts[p as usize], &fields[p as usize], values);
+                let v = chart_value(c, &charts[p as usize], p as usize, fields, source);
                 row[x] = v.map(|v| v as f32);
                 cover[x] = Texel::Chart(p);
             }

@@ -135,15 +135,18 @@ fn grouped_charts_on_a_hundred_thousand_triangles() {
     let options = lightmap::Options {
         texel_size: 0.04,
         max_size: lightmap::DEFAULT_MAX_SIZE,
+        shading: lightmap::Shading::Smooth,
+        max_atlases: lightmap::DEFAULT_MAX_ATLASES,
     };
     let started = Instant::now();
     let map = lightmap::build(&polygons, &mesh, &h, &options).expect("build");
     let seconds = started.elapsed().as_secs_f64();
     let stats = &map.stats;
     println!(
-        "{triangles} triangles: {} charts, 1 atlas {}×{}, occupancy {:.1}%, texel {:.4} \
+        "{triangles} triangles: {} charts, {} atlas {}×{}, occupancy {:.1}%, texel {:.4} \
          (asked {:.4}), built in {seconds:.2} s",
         stats.charts,
+        stats.atlases,
         map.width,
         map.height,
         100.0 * stats.occupancy,
@@ -323,6 +326,8 @@ fn a_generated_layout_is_a_valid_authored_one() {
     let options = lightmap::Options {
         texel_size: 0.04,
         max_size: lightmap::DEFAULT_MAX_SIZE,
+        shading: lightmap::Shading::Smooth,
+        max_atlases: lightmap::DEFAULT_MAX_ATLASES,
     };
     let generated = lightmap::build(&polygons, &mesh, &h, &options).expect("build");
     let authored = lightmap::AuthoredUv {
@@ -361,6 +366,73 @@ fn a_generated_layout_is_a_valid_authored_one() {
                 (a[0] - b[0]).abs() <= f32::EPSILON && (a[1] - b[1]).abs() <= f32::EPSILON,
                 "{p}/{k}: {a:?} vs {b:?}"
             );
+        }
+    }
+}
+
+/// The 100k-triangle scene at 50 texels per metre under 2048-texel atlases: the charts need
+/// more than one atlas, so they get several (whole primitives — here nodes — per atlas) at the
+/// requested texel size: each atlas within 2048, its regions apart, every node in one atlas,
+/// occupancy over all atlases ≥ 60%. Prints atlas count, occupancy, charts and time.
+#[test]
+fn a_hundred_thousand_triangles_in_several_atlases() {
+    let polygons = scene();
+    let mesh = mesher::mesh(&polygons, mesher::Subdivision::Count(1)).expect("mesh");
+    let h: Vec<[f64; 3]> = mesh.elements.iter().map(|e| smooth_h(e.centroid)).collect();
+    let options = lightmap::Options {
+        texel_size: 0.02,
+        max_size: 2048,
+        shading: lightmap::Shading::Smooth,
+        max_atlases: lightmap::DEFAULT_MAX_ATLASES,
+    };
+    let started = Instant::now();
+    let map = lightmap::build(&polygons, &mesh, &h, &options).expect("build");
+    let seconds = started.elapsed().as_secs_f64();
+    let atlases = map.atlases();
+    println!(
+        "{} triangles at texel 0.02, 2048 max: {} charts, {} atlases {:?}, occupancy {:.1}%, \
+         texel {:.4}, built in {seconds:.2} s",
+        polygons.len(),
+        map.stats.charts,
+        atlases.len(),
+        atlases
+            .iter()
+            .map(|a| (a.width, a.height))
+            .collect::<Vec<_>>(),
+        100.0 * map.stats.occupancy,
+        map.texel_size
+    );
+    assert!(atlases.len() >= 2, "{:?}", map.stats);
+    assert_eq!((map.stats.reductions, map.texel_size), (0, 0.02));
+    assert!(map.stats.occupancy >= 0.60, "{}", map.stats.occupancy);
+    let mut atlas_of_node: HashMap<usize, u32> = HashMap::new();
+    for c in &map.charts {
+        let node = polygons[c.polygon].origin.node;
+        assert_eq!(
+            *atlas_of_node.entry(node).or_insert(c.atlas),
+            c.atlas,
+            "node {node}"
+        );
+        let a = atlases[c.atlas as usize];
+        let r = c.region;
+        assert!(r.x + r.width <= a.width && r.y + r.height <= a.height);
+        for q in &c.uv {
+            assert!(q[0] >= 0.0 && q[1] >= 0.0);
+            assert!(q[0] <= f64::from(a.width) && q[1] <= f64::from(a.height));
+        }
+    }
+    // Regions of different charts in one atlas apart.
+    let mut regions: Vec<(u32, lightmap::Rect)> =
+        map.charts.iter().map(|c| (c.atlas, c.region)).collect();
+    regions.sort_by_key(|(k, r)| (*k, r.y, r.x));
+    regions.dedup();
+    for (i, (ka, a)) in regions.iter().enumerate() {
+        for (kb, b) in &regions[i + 1..] {
+            if kb != ka || b.y >= a.y + a.height {
+                break;
+            }
+            let apart = a.x + a.width <= b.x || b.x + b.width <= a.x || a.y + a.height <= b.y;
+            assert!(apart, "atlas {ka}: regions {a:?} and {b:?} overlap");
         }
     }
 }
