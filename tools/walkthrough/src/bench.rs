@@ -25,6 +25,9 @@ pub struct Args {
     /// Floor-to-ceiling height (m).
     #[arg(long, default_value_t = 3.0)]
     height: f64,
+    /// No walls between the rooms (see `walkthrough office --open-plan`).
+    #[arg(long)]
+    open_plan: bool,
     /// Passed to bake as --max-element-size.
     #[arg(long, default_value_t = 0.25)]
     max_element_size: f64,
@@ -73,8 +76,8 @@ pub fn run(args: Args) -> Result<()> {
 
     let mut rows = Vec::new();
     for &rooms in &args.rooms {
-        let floor =
-            office::office(rooms, args.room_size, args.height).map_err(anyhow::Error::msg)?;
+        let floor = office::office_with(rooms, args.room_size, args.height, args.open_plan)
+            .map_err(anyhow::Error::msg)?;
         let input = dir.join(format!("office-{rooms}.gltf"));
         gltf::write(&floor, &input)?;
         let output = dir.join(format!("office-{rooms}-baked.gltf"));

@@ -43,6 +43,10 @@ enum Command {
         /// Element size for the printed element count (the bake's --max-element-size).
         #[arg(long, default_value_t = 0.25)]
         element_size: f64,
+        /// No walls between the rooms (outer walls only): every part of the floor sees every
+        /// other.
+        #[arg(long)]
+        open_plan: bool,
         /// Output file: .gltf (writes its stem + .bin beside it) or .glb.
         out: PathBuf,
     },
@@ -67,12 +71,14 @@ fn run(cli: Cli) -> Result<()> {
             room_size,
             height,
             element_size,
+            open_plan,
             out,
         } => {
             if !(element_size.is_finite() && element_size > 0.0) {
                 anyhow::bail!("--element-size must be a positive number, got {element_size}");
             }
-            let floor = office::office(rooms, room_size, height).map_err(anyhow::Error::msg)?;
+            let floor = office::office_with(rooms, room_size, height, open_plan)
+                .map_err(anyhow::Error::msg)?;
             if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
                 std::fs::create_dir_all(dir)
                     .with_context(|| format!("creating {}", dir.display()))?;

@@ -230,6 +230,18 @@ fn mix(i: usize, j: usize) -> u64 {
 
 /// The office floor. `room_size` ≥ [`MIN_ROOM_SIZE`], `height` ≥ [`MIN_HEIGHT`] (checked).
 pub fn office(rooms: Rooms, room_size: f64, height: f64) -> Result<Floor, String> {
+    office_with(rooms, room_size, height, false)
+}
+
+/// [`office`], or with `open_plan` an open-plan floor: the same rooms' floors, ceilings,
+/// panels and furniture tiled without walls between them (outer walls only), so every part
+/// of the floor sees every other — the case the cluster descent cannot cull.
+pub fn office_with(
+    rooms: Rooms,
+    room_size: f64,
+    height: f64,
+    open_plan: bool,
+) -> Result<Floor, String> {
     if !(room_size.is_finite() && (MIN_ROOM_SIZE..=100.0).contains(&room_size)) {
         return Err(format!(
             "--room-size must be between {MIN_ROOM_SIZE} and 100 m, got {room_size}"
@@ -241,7 +253,7 @@ pub fn office(rooms: Rooms, room_size: f64, height: f64) -> Result<Floor, String
         ));
     }
     let (s, h) = (room_size, height);
-    let pitch = s + WALL;
+    let pitch = if open_plan { s } else { s + WALL };
     let door = |start: f64| {
         [
             start + (s - DOOR_WIDTH) / 2.0,
@@ -278,14 +290,30 @@ pub fn office(rooms: Rooms, room_size: f64, height: f64) -> Result<Floor, String
                     walls.push(face(run, [0.0, h]));
                 }
             };
-            wall_face(X, true, x[0], z, i > 0);
-            wall_face(X, false, x[1], z, i + 1 < rooms.x);
-            wall_face(Z, true, z[0], x, j > 0);
-            wall_face(Z, false, z[1], x, j + 1 < rooms.z);
+            if open_plan {
+                // Outer walls only.
+                if i == 0 {
+                    wall_face(X, true, x[0], z, false);
+                }
+                if i + 1 == rooms.x {
+                    wall_face(X, false, x[1], z, false);
+                }
+                if j == 0 {
+                    wall_face(Z, true, z[0], x, false);
+                }
+                if j + 1 == rooms.z {
+                    wall_face(Z, false, z[1], x, false);
+                }
+            } else {
+                wall_face(X, true, x[0], z, i > 0);
+                wall_face(X, false, x[1], z, i + 1 < rooms.x);
+                wall_face(Z, true, z[0], x, j > 0);
+                wall_face(Z, false, z[1], x, j + 1 < rooms.z);
+            }
 
             // The reveals of the doors in this room's +x and +z walls: jambs facing into the
             // doorway, the lintel's underside, and the threshold.
-            if i + 1 < rooms.x {
+            if i + 1 < rooms.x && !open_plan {
                 let t = [x[1], x[1] + WALL];
                 let d = door(z[0]);
                 walls.push(rect(Z, true, d[0], t, [0.0, DOOR_HEIGHT]));
@@ -293,7 +321,7 @@ pub fn office(rooms: Rooms, room_size: f64, height: f64) -> Result<Floor, String
                 walls.push(rect(Y, false, DOOR_HEIGHT, d, t));
                 floor.push(rect(Y, true, 0.0, d, t));
             }
-            if j + 1 < rooms.z {
+            if j + 1 < rooms.z && !open_plan {
                 let t = [z[1], z[1] + WALL];
                 let d = door(x[0]);
                 walls.push(rect(X, true, d[0], [0.0, DOOR_HEIGHT], t));
@@ -355,16 +383,18 @@ pub fn office(rooms: Rooms, room_size: f64, height: f64) -> Result<Floor, String
                 dh,
             );
 
+            let faces = vec![
+                (Surface::Floor, floor),
+                (Surface::Wall, walls),
+                (Surface::Ceiling, ceiling),
+                (Surface::Light, lights),
+                (Surface::Desk, desk),
+                (Surface::Cabinet, cabinet),
+            ];
             room_list.push(Room {
                 name: format!("room_{i}_{j}"),
-                faces: vec![
-                    (Surface::Floor, floor),
-                    (Surface::Wall, walls),
-                    (Surface::Ceiling, ceiling),
-                    (Surface::Light, lights),
-                    (Surface::Desk, desk),
-                    (Surface::Cabinet, cabinet),
-                ],
+                // An open plan's inner rooms have no walls: no empty primitive for them.
+                faces: faces.into_iter().filter(|(_, q)| !q.is_empty()).collect(),
             });
         }
     }
@@ -435,5 +465,32 @@ mod tests {
             two.elements(0.25),
             2 * (256 + 256 + 30 + 72 + 68 + 3 * 192 + 160) + 26
         );
+    }
+    #[test]
+    fn an_open_plan_floor_has_outer_walls_only() {
+        let rooms = Rooms { x: 3, z: 2 };
+        let open = office_with(rooms, 4.0, 3.0, true).unwrap();
+        let walls: Vec<&Quad> = open
+            .quads()
+            .filter(|(s, _)| *s == Surface::Wall)
+            .map(|(_, q)| q)
+            .collect();
+        // One face per room along the outside: 2 × (3 + 2).
+        assert_eq!(walls.len(), 10);
+        // Every wall lies on the floor's outline, x ∈ {0, 12} or z ∈ {0, 8}.
+        for q in walls {
+            let on = |k: usize, at: f64| q.iter().all(|v| (v[k] - at).abs() < 1e-12);
+            assert!(
+                on(0, 0.0) || on(0, 12.0) || on(2, 0.0) || on(2, 8.0),
+                "{q:?}"
+            );
+        }
+        // Floors tile the 12 × 8 m plan without gaps: total area 96 m².
+        let area: f64 = open
+            .quads()
+            .filter(|(s, _)| *s == Surface::Floor)
+            .map(|(_, q)| distance(q[0], q[1]) * distance(q[0], q[3]))
+            .sum();
+        assert!((area - 96.0).abs() < 1e-9, "{area}");
     }
 }
