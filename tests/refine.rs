@@ -1,0 +1,215 @@
+//! Refinement where the light changes (issue 16), end to end through the binary: a 10 × 10 m
+//! floor (ρ = 0.5) under a vertical 1000 lux sun and a black 2 × 2 m square 2 m above it.
+//! The closed form is ρE/π lit and 0 in the shadow (the square is black: nothing comes back).
+//! What is tested is what a viewer shows: `_RADIOSITY` read back from the output glTF,
+//! interpolated linearly over its triangles, at a 200 × 200 grid of points.
+
+mod common;
+
+use common::{aim, bake_json, lit_scene};
+use gltf::Semantic;
+use serde_json::json;
+use std::collections::HashMap;
+use std::f64::consts::PI;
+use std::path::Path;
+
+const RHO: f64 = 0.5;
+const SUN: f64 = 1000.0;
+
+fn quad(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> Vec<[f32; 3]> {
+    vec![a, b, c, a, c, d]
+}
+
+fn sun_floor() -> serde_json::Value {
+    let floor = quad(
+        [-5.0, 0.0, -5.0],
+        [-5.0, 0.0, 5.0],
+        [5.0, 0.0, 5.0],
+        [5.0, 0.0, -5.0],
+    );
+    // Facing down, centred 2 m above the origin.
+    let square = quad(
+        [-1.0, 2.0, -1.0],
+        [1.0, 2.0, -1.0],
+        [1.0, 2.0, 1.0],
+        [-1.0, 2.0, 1.0],
+    );
+    lit_scene(
+        &[(floor, [RHO; 3]), (square, [0.0; 3])],
+        &[(
+            json!({ "type": "directional", "intensity": SUN }),
+            json!({ "rotation": aim([0.0, -1.0, 0.0]) }),
+        )],
+    )
+}
+
+/// The floor's output triangles (positions and `_RADIOSITY`, band 0).
+struct Floor {
+    triangles: Vec<[([f32; 3], f64); 3]>,
+}
+
+fn read_floor(path: &Path) -> Floor {
+    let (doc, buffers, _) = gltf::import(path).expect("read the output glTF");
+    let mut triangles = Vec::new();
+    for node in doc.nodes() {
+        let Some(mesh) = node.mesh() else { continue };
+        for primitive in mesh.primitives() {
+            let get = |b: gltf::Buffer| buffers.get(b.index()).map(|d| &d[..]);
+            let reader = primitive.reader(get);
+            let positions: Vec<[f32; 3]> = reader.read_positions().expect("POSITION").collect();
+            let radiosity = primitive
+                .get(&Semantic::Extras("RADIOSITY".into()))
+                .expect("_RADIOSITY");
+            let values: Vec<[f32; 3]> = gltf::accessor::Iter::<[f32; 3]>::new(radiosity, get)
+                .expect("_RADIOSITY data")
+                .collect();
+            let indices: Vec<u32> = reader.read_indices().expect("indices").into_u32().collect();
+            for t in indices.chunks(3) {
+                let corner = |k: usize| {
+                    let i = t[k] as usize;
+                    (positions[i], f64::from(values[i][0]))
+                };
+                let tri = [corner(0), corner(1), corner(2)];
+                if tri.iter().all(|(p, _)| p[1] == 0.0) {
+                    triangles.push(tri);
+                }
+            }
+        }
+    }
+    Floor { triangles }
+}
+
+impl Floor {
+    /// The share of the 200 × 200 grid's points farther than 5 cm from the shadow's edge
+    /// where the interpolated field is within 2% of the lit value of the closed form.
+    fn share_within_2_percent(&self) -> (f64, usize) {
+        let lit = RHO * SUN / PI;
+        // Buckets of 0.1 m over the floor.
+        let cells = 100usize;
+        let cell = |x: f64| (((x + 5.0) / 10.0 * cells as f64).floor() as usize).min(cells - 1);
+        let mut buckets = vec![Vec::new(); cells * cells];
+        for (k, t) in self.triangles.iter().enumerate() {
+            let xs = t.map(|(p, _)| f64::from(p[0]));
+            let zs = t.map(|(p, _)| f64::from(p[2]));
+            let (x0, x1) = (
+                xs.iter().copied().fold(f64::MAX, f64::min),
+                xs.iter().copied().fold(f64::MIN, f64::max),
+            );
+            let (z0, z1) = (
+                zs.iter().copied().fold(f64::MAX, f64::min),
+                zs.iter().copied().fold(f64::MIN, f64::max),
+            );
+            for j in cell(z0)..=cell(z1) {
+                for i in cell(x0)..=cell(x1) {
+                    buckets[j * cells + i].push(k);
+                }
+            }
+        }
+        let (mut good, mut total) = (0usize, 0usize);
+        for j in 0..200 {
+            for i in 0..200 {
+                let (x, z) = (
+                    -5.0 + (i as f64 + 0.5) * 0.05,
+                    -5.0 + (j as f64 + 0.5) * 0.05,
+                );
+                // Distance to the shadow square's boundary [-1, 1]².
+                let (dx, dz) = (x.abs() - 1.0, z.abs() - 1.0);
+                let outside = dx.max(0.0).hypot(dz.max(0.0));
+                let edge = if dx <= 0.0 && dz <= 0.0 {
+                    -dx.max(dz)
+                } else {
+                    outside
+                };
+                if edge <= 0.05 {
+                    continue;
+                }
+                total += 1;
+                let expected = if dx < 0.0 && dz < 0.0 { 0.0 } else { lit };
+                let value = buckets[cell(z) * cells + cell(x)].iter().find_map(|&k| {
+                    let t = &self.triangles[k];
+                    let p = t.map(|(p, _)| (f64::from(p[0]), f64::from(p[2])));
+                    let det = (p[1].0 - p[0].0) * (p[2].1 - p[0].1)
+                        - (p[2].0 - p[0].0) * (p[1].1 - p[0].1);
+                    let b =
+                        ((x - p[0].0) * (p[2].1 - p[0].1) - (p[2].0 - p[0].0) * (z - p[0].1)) / det;
+                    let c =
+                        ((p[1].0 - p[0].0) * (z - p[0].1) - (x - p[0].0) * (p[1].1 - p[0].1)) / det;
+                    let a = 1.0 - b - c;
+                    (a >= -1e-9 && b >= -1e-9 && c >= -1e-9)
+                        .then(|| a * t[0].1 + b * t[1].1 + c * t[2].1)
+                });
+                let value = value.unwrap_or_else(|| panic!("no triangle covers ({x}, {z})"));
+                if (value - expected).abs() <= 0.02 * lit {
+                    good += 1;
+                }
+            }
+        }
+        (good as f64 / total as f64, total)
+    }
+
+    /// Whether every triangle edge is shared by exactly two triangles (one each way), or lies
+    /// on the floor's boundary: the mesh has no T-junctions. Shadow-edge discontinuities
+    /// duplicate vertices, not positions, so they are shared edges too.
+    fn conforming(&self) -> Result<(), String> {
+        let key = |p: [f32; 3]| p.map(f32::to_bits);
+        let mut edges: HashMap<([u32; 3], [u32; 3]), u32> = HashMap::new();
+        for t in &self.triangles {
+            for k in 0..3 {
+                *edges
+                    .entry((key(t[k].0), key(t[(k + 1) % 3].0)))
+                    .or_default() += 1;
+            }
+        }
+        for (&(a, b), &n) in &edges {
+            let back = edges.get(&(b, a)).copied().unwrap_or(0);
+            let (pa, pb) = (a.map(f32::from_bits), b.map(f32::from_bits));
+            let on_boundary = (0..3)
+                .step_by(2)
+                .any(|axis| pa[axis].abs() == 5.0 && pb[axis] == pa[axis]);
+            if n != 1 || (back != 1 && !on_boundary) {
+                return Err(format!(
+                    "edge {pa:?} → {pb:?}: {n} times this way, {back} the other"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[test]
+fn refined_sun_shadow_is_within_two_percent_with_a_conforming_mesh() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let report = bake_json(dir.path(), "in", &sun_floor(), &[]);
+    let floor = read_floor(&dir.path().join("in-out.gltf"));
+    let (share, points) = floor.share_within_2_percent();
+    eprintln!(
+        "refined: {} floor triangles, {share:.5} of {points} points within 2%; {:?}",
+        floor.triangles.len(),
+        report.refinement
+    );
+    assert!(share >= 0.998, "{share}");
+    floor.conforming().expect("a conforming floor mesh");
+    assert!(floor.triangles.len() <= 8000, "{}", floor.triangles.len());
+    let refinement = report
+        .refinement
+        .as_ref()
+        .expect("the report says what refinement did");
+    assert!(refinement.passes > 0 && refinement.elements_after > refinement.elements_before);
+    assert!(refinement.discontinuity_vertices > 0);
+
+    // The uniform mesh of the same options does not pass: what refinement bought.
+    let uniform = bake_json(dir.path(), "off", &sun_floor(), &["--refine", "off"]);
+    let flat = read_floor(&dir.path().join("off-out.gltf"));
+    let (share_off, _) = flat.share_within_2_percent();
+    eprintln!(
+        "uniform: {} floor triangles, {share_off:.5} within 2%",
+        flat.triangles.len()
+    );
+    assert!(share_off < 0.99, "{share_off}");
+    assert_eq!(
+        uniform.refinement.as_ref().map(|r| r.passes),
+        Some(0),
+        "--refine off keeps the grid"
+    );
+    flat.conforming().expect("the grid conforms too");
+}
