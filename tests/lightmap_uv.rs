@@ -396,6 +396,8 @@ fn blender_lightmap_pack_is_kept_as_authored() {
     let scene = importer::load(&room).expect("load");
     let request = bake_core::Request {
         irradiance: true,
+        // The uniform mesh this test is about.
+        refine: Some(false),
         ..bake_core::Request::default()
     };
     let settings = bake_core::Settings::resolve(&request, &scene.polygons).expect("settings");

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{aim, bake_json, lit_scene};
+use common::{aim, bake_json_default, lit_scene};
 use gltf::Semantic;
 use serde_json::json;
 use std::collections::HashMap;
@@ -179,7 +179,7 @@ impl Floor {
 #[test]
 fn refined_sun_shadow_is_within_two_percent_with_a_conforming_mesh() {
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let report = bake_json(dir.path(), "in", &sun_floor(), &[]);
+    let report = bake_json_default(dir.path(), "in", &sun_floor(), &[]);
     let floor = read_floor(&dir.path().join("in-out.gltf"));
     let (share, points) = floor.share_within_2_percent();
     eprintln!(
@@ -196,9 +196,11 @@ fn refined_sun_shadow_is_within_two_percent_with_a_conforming_mesh() {
         .expect("the report says what refinement did");
     assert!(refinement.passes > 0 && refinement.elements_after > refinement.elements_before);
     assert!(refinement.discontinuity_vertices > 0);
+    // The refined output is valid glTF (hanging-vertex fans, copied vertices).
+    common::validate_clean(&[dir.path().join("in-out.gltf")]);
 
     // The uniform mesh of the same options does not pass: what refinement bought.
-    let uniform = bake_json(dir.path(), "off", &sun_floor(), &["--refine", "off"]);
+    let uniform = bake_json_default(dir.path(), "off", &sun_floor(), &["--refine", "off"]);
     let flat = read_floor(&dir.path().join("off-out.gltf"));
     let (share_off, _) = flat.share_within_2_percent();
     eprintln!(
@@ -212,4 +214,84 @@ fn refined_sun_shadow_is_within_two_percent_with_a_conforming_mesh() {
         "--refine off keeps the grid"
     );
     flat.conforming().expect("the grid conforms too");
+}
+
+/// The lightmap reconstructs the refined solution: its smoothed irradiance H (E/π lit, 0 in
+/// the shadow: the square is black) at the grid's points farther than 5 cm from the shadow's
+/// edge, and its texels sampled through the chart where the bilinear filter (a texel either
+/// side) stays clear of the edge, are within 2% of the closed form.
+#[test]
+fn the_lightmap_samples_the_refined_solution() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let input = dir.path().join("floor.gltf");
+    common::write_json(&input, &sun_floor());
+    let scene = importer::load(&input).expect("load");
+    let request = bake_core::Request {
+        irradiance: true,
+        ..bake_core::Request::default()
+    };
+    let settings = bake_core::Settings::resolve(&request, &scene.polygons).expect("settings");
+    let bake = bake_core::run(&scene, &settings, &bake_core::Silent).expect("bake");
+    assert!(bake.refinement.passes > 0, "{:?}", bake.refinement);
+    let h = bake.irradiance.as_ref().expect("H");
+    let options = lightmap::Options {
+        texel_size: lightmap::default_texel_size(&scene.polygons),
+        max_size: lightmap::DEFAULT_MAX_SIZE,
+    };
+    let map = lightmap::build(&scene.polygons, &bake.mesh, h, &options).expect("lightmap");
+    let floor = scene
+        .polygons
+        .iter()
+        .position(|p| p.normal.y > 0.5)
+        .expect("the floor");
+    let corners = &scene.polygons[floor].vertices;
+    let uv: Vec<glam::DVec2> = (0..corners.len())
+        .map(|k| {
+            let t = map.texcoord(floor, k);
+            glam::DVec2::new(f64::from(t[0]), f64::from(t[1]))
+        })
+        .collect();
+    // The floor is a rectangle: its chart is an affine image of it.
+    let (e1, e2) = (corners[1] - corners[0], corners[3] - corners[0]);
+    let texel = map.texel_size;
+    let lit = SUN / PI;
+    let (mut good, mut total, mut texels_good, mut texels) = (0, 0, 0, 0);
+    for j in 0..200 {
+        for i in 0..200 {
+            let (x, z) = (
+                -5.0 + (i as f64 + 0.5) * 0.05,
+                -5.0 + (j as f64 + 0.5) * 0.05,
+            );
+            let (dx, dz) = (x.abs() - 1.0, z.abs() - 1.0);
+            let inside = dx < 0.0 && dz < 0.0;
+            let edge = if inside {
+                -dx.max(dz)
+            } else {
+                dx.max(0.0).hypot(dz.max(0.0))
+            };
+            let expected = if inside { 0.0 } else { lit };
+            let p = glam::DVec3::new(x, 0.0, z);
+            if edge > 0.05 {
+                total += 1;
+                let v = map.irradiance_at(floor, p)[0];
+                good += usize::from((v - expected).abs() <= 0.02 * lit);
+            }
+            if edge > 2.5 * texel {
+                let d = p - corners[0];
+                let (s, t) = (
+                    d.dot(e1) / e1.length_squared(),
+                    d.dot(e2) / e2.length_squared(),
+                );
+                let at = uv[0] + (uv[1] - uv[0]) * s + (uv[3] - uv[0]) * t;
+                texels += 1;
+                let v = map.sample([at.x, at.y])[0];
+                texels_good += usize::from((v - expected).abs() <= 0.02 * lit);
+            }
+        }
+    }
+    let share = good as f64 / total as f64;
+    let texel_share = texels_good as f64 / texels as f64;
+    eprintln!("lightmap: {share:.5} of {total} field points, {texel_share:.5} of {texels} texel samples within 2% (texel {texel})");
+    assert!(share >= 0.998, "{share}");
+    assert!(texel_share >= 0.998, "{texel_share}");
 }

@@ -55,8 +55,29 @@ where
     bake_in(None, args)
 }
 
-/// Runs the `bake` binary with `args`, in `dir` when given.
+/// Runs the `bake` binary with `args`, in `dir` when given. A bake that does not say
+/// `--refine` gets `--refine off`: these tests check the uniform mesh they ask for (element
+/// counts, closed forms per element); `tests/refine.rs` bakes with the defaults through
+/// [`bake_default_in`].
 pub fn bake_in<I, S>(dir: Option<&Path>, args: I) -> Run
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<OsStr>,
+{
+    let mut args: Vec<std::ffi::OsString> = args
+        .into_iter()
+        .map(|a| a.as_ref().to_os_string())
+        .collect();
+    let says = |flags: &[&str]| args.iter().any(|a| flags.iter().any(|f| a == f));
+    let preview = args.first().is_some_and(|a| a == "preview");
+    if !preview && !says(&["--refine", "--help", "-h", "--version", "-V"]) {
+        args.extend(["--refine".into(), "off".into()]);
+    }
+    bake_default_in(dir, args)
+}
+
+/// Runs the `bake` binary with exactly `args` (the bake's own defaults), in `dir` when given.
+pub fn bake_default_in<I, S>(dir: Option<&Path>, args: I) -> Run
 where
     I: IntoIterator<Item = S>,
     S: AsRef<OsStr>,
@@ -302,6 +323,26 @@ fn push(array: &mut Value, value: Value) -> usize {
 /// Writes `doc` as `dir/NAME.gltf`, bakes it (`--target vertex`, a report, `--quiet`, then
 /// `args`), asserts exit 0 and returns the report.
 pub fn bake_json(dir: &Path, name: &str, doc: &Value, args: &[&str]) -> exporter::report::Report {
+    bake_json_with(dir, name, doc, args, false)
+}
+
+/// [`bake_json`] with the bake's own defaults (refinement on unless `args` say otherwise).
+pub fn bake_json_default(
+    dir: &Path,
+    name: &str,
+    doc: &Value,
+    args: &[&str],
+) -> exporter::report::Report {
+    bake_json_with(dir, name, doc, args, true)
+}
+
+fn bake_json_with(
+    dir: &Path,
+    name: &str,
+    doc: &Value,
+    args: &[&str],
+    defaults: bool,
+) -> exporter::report::Report {
     let input = dir.join(format!("{name}.gltf"));
     write_json(&input, doc);
     let out = dir.join(format!("{name}-out.gltf"));
@@ -316,7 +357,11 @@ pub fn bake_json(dir: &Path, name: &str, doc: &Value, args: &[&str]) -> exporter
         report.as_os_str(),
     ];
     all.extend(args.iter().map(OsStr::new));
-    bake(all).success();
+    if defaults {
+        bake_default_in(None, all).success();
+    } else {
+        bake(all).success();
+    }
     exporter::report::read_report(&report).expect("read the report")
 }
 
