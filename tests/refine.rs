@@ -295,3 +295,42 @@ fn the_lightmap_samples_the_refined_solution() {
     assert!(share >= 0.998, "{share}");
     assert!(texel_share >= 0.998, "{texel_share}");
 }
+
+/// Where the light is smooth nothing is refined: the same floor under the sun without the
+/// square is lit uniformly (every element exactly ρE/π), so the grid is kept.
+#[test]
+fn uniform_light_is_not_refined() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let mut doc = sun_floor();
+    // Drop the square's node: the scene's first root is the floor, the second the square.
+    doc["scenes"][0]["nodes"] = json!([0, 2]);
+    let report = bake_json_default(dir.path(), "lone", &doc, &[]);
+    let r = report.refinement.as_ref().expect("refinement");
+    assert_eq!((r.passes, r.split), (0, 0), "{r:?}");
+    assert_eq!(r.elements_after, r.elements_before);
+    assert_eq!(r.stopped, "the estimate meets the target");
+    assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+}
+
+/// A budget too small for the shadow's edge stops refinement with a warning naming where the
+/// elements above the target are.
+#[test]
+fn the_budget_stops_refinement_and_says_where() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let report = bake_json_default(
+        dir.path(),
+        "small",
+        &sun_floor(),
+        &["--max-elements", "300"],
+    );
+    let r = report.refinement.as_ref().expect("refinement");
+    assert!(r.elements_after <= 300, "{r:?}");
+    assert!(r.elements_after > r.elements_before, "{r:?}");
+    assert!(r.stopped.contains("--max-elements 300"), "{r:?}");
+    let warning = report
+        .warnings
+        .iter()
+        .find(|w| w.contains("refinement stopped"))
+        .unwrap_or_else(|| panic!("no warning: {:?}", report.warnings));
+    assert!(warning.contains("on polygon 0 (material 0)"), "{warning}");
+}

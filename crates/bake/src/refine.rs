@@ -288,3 +288,53 @@ pub fn refine(
     };
     Ok(bake)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Request;
+
+    /// Splitting every element of the cube's 4 × 4 grids once gives the 8 × 8 grids' elements
+    /// (midpoints are grid points): the bake on the refined mesh must agree with the bake on
+    /// the 8 × 8 grid element by element (the transport takes any mesh; only the rounding of
+    /// the vertex positions differs).
+    #[test]
+    fn a_mesh_refined_everywhere_bakes_like_the_finer_grid() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/cube.gltf");
+        let scene = importer::load(std::path::Path::new(path)).expect("the cube");
+        let settings = |n| {
+            let request = Request {
+                subdivision: Some(mesher::Subdivision::Count(n)),
+                refine: Some(false),
+                ..Request::default()
+            };
+            Settings::resolve(&request, &scene.polygons).expect("settings")
+        };
+        let coarse = mesher::mesh(&scene.polygons, mesher::Subdivision::Count(4)).expect("mesh");
+        let refined = coarse
+            .refine(&vec![true; coarse.elements.len()])
+            .expect("refine")
+            .mesh;
+        let on_refined =
+            run_mesh(&scene, &settings(8), &crate::Silent, Some(refined)).expect("bake");
+        let fine = run_mesh(&scene, &settings(8), &crate::Silent, None).expect("bake");
+        assert_eq!(on_refined.mesh.elements.len(), fine.mesh.elements.len());
+        let key = |c: glam::DVec3| (c * 1e6).round().to_array().map(|x| x as i64);
+        let at: std::collections::HashMap<_, _> = fine
+            .mesh
+            .elements
+            .iter()
+            .zip(&fine.solution.b)
+            .map(|(e, b)| (key(e.centroid), *b))
+            .collect();
+        for (e, b) in on_refined.mesh.elements.iter().zip(&on_refined.solution.b) {
+            let want = at.get(&key(e.centroid)).expect("the same element");
+            for c in 0..3 {
+                assert!(
+                    (b[c] - want[c]).abs() <= 1e-9 * want[c].abs().max(1e-3),
+                    "{b:?} {want:?}"
+                );
+            }
+        }
+    }
+}

@@ -75,6 +75,9 @@ pub struct Setting {
     /// A preset's target error of b: `auto`'s tolerance is then derived from it and ρ_max as
     /// `--quality` does (`None`: the estimator as given).
     pub max_error: Option<f64>,
+    /// Refinement below the grid with this element budget (`--refine on --max-elements N`,
+    /// the target from `max_error` or the preset's); `None`: `--refine off`, the uniform mesh.
+    pub refine: Option<u64>,
 }
 
 /// A finished bake and what it cost.
@@ -114,6 +117,8 @@ pub fn bake_once(scene: &Scene, setting: &Setting) -> Result<Run> {
     let request = bake_core::Request {
         subdivision: Some(setting.subdivision),
         transport: bake_core::TransportKind::Dense,
+        refine: Some(setting.refine.is_some()),
+        max_elements: setting.refine,
         ..bake_core::Request::default()
     };
     let mut settings = bake_core::Settings::resolve(&request, &scene.polygons)?;
@@ -599,6 +604,7 @@ mod tests {
                 subdivision: Some(Subdivision::Count(28)),
                 transport,
                 link_tolerance,
+                refine: Some(false),
                 ..bake_core::Request::default()
             };
             let settings =
@@ -667,12 +673,14 @@ mod tests {
             ff_estimator: Some(bake_core::EstimatorKind::Contour),
             visibility_samples: Some(961),
             transport: bake_core::TransportKind::Dense,
+            refine: Some(false),
             ..bake_core::Request::default()
         });
         let reference = Field::new(&fine.mesh, &fine.solution.b);
         for d in [8.0, 12.0] {
             let bake = run(bake_core::Request {
                 subdivision: Some(size(d)),
+                refine: Some(false),
                 ..bake_core::Request::default()
             });
             let coarse = Field::new(&bake.mesh, &bake.solution.b);
@@ -697,6 +705,7 @@ mod tests {
         let reference = Field::new(&ref_mesh, &ref_b);
         let request = bake_core::Request {
             subdivision: Some(Subdivision::Count(7)),
+            refine: Some(false),
             ..bake_core::Request::default()
         };
         let settings = bake_core::Settings::resolve(&request, &cube.polygons).expect("settings");
