@@ -353,27 +353,42 @@ pub fn markdown(rows: &[RefineRow]) -> String {
                 r.within.map_or("".into(), |w| format!("{:.2}%", 100.0 * w))
             );
         }
-        // Equal time: each refined bake against the best uniform one no slower.
+        // Equal time: each refined bake against the best uniform one no slower; equal error:
+        // the cheapest uniform bake at least as accurate.
         let _ = writeln!(s);
+        let ratio = |off: f64, on: f64| {
+            if on < 1e-12 {
+                "exact to rounding".to_string()
+            } else {
+                format!("off/on = {:.1}", off / on)
+            }
+        };
         for r in here.iter().filter(|r| r.refine) {
-            if let Some(off) = best_within(&here, false, r.time_s) {
-                let _ = writeln!(
-                    s,
-                    "- {} ({:.2} s): {:.2e} on vs {:.2e}, the best uniform mesh within that \
-                     time: {:.1}× lower.",
-                    r.label,
-                    r.time_s,
+            let time = match best_within(&here, false, r.time_s) {
+                Some(off) => format!(
+                    "{:.2e} vs {:.2e} for the best uniform mesh within that time ({})",
                     r.error,
                     off,
-                    off / r.error
-                );
-            } else {
-                let _ = writeln!(
-                    s,
-                    "- {} ({:.2} s): {:.2e}; every uniform mesh measured took longer.",
-                    r.label, r.time_s, r.error
-                );
-            }
+                    ratio(off, r.error)
+                ),
+                None => format!("{:.2e}; every uniform mesh measured took longer", r.error),
+            };
+            let equal = here
+                .iter()
+                .filter(|u| !u.refine && u.error <= r.error)
+                .min_by(|a, b| a.time_s.total_cmp(&b.time_s));
+            let error = match equal {
+                Some(u) => format!(
+                    "the uniform mesh reaching that error: {} ({} elements, {:.2} s)",
+                    u.label, u.elements, u.time_s
+                ),
+                None => "no uniform mesh measured reaches that error".to_string(),
+            };
+            let _ = writeln!(
+                s,
+                "- {} ({} elements, {:.2} s): {time}; {error}.",
+                r.label, r.elements, r.time_s
+            );
         }
         let _ = writeln!(s);
     }
