@@ -334,3 +334,28 @@ fn the_budget_stops_refinement_and_says_where() {
         .unwrap_or_else(|| panic!("no warning: {:?}", report.warnings));
     assert!(warning.contains("on polygon 0 (material 0)"), "{warning}");
 }
+
+/// A refined bake gives the same bytes whatever the thread count.
+#[test]
+fn refined_bakes_are_deterministic() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let input = dir.path().join("floor.gltf");
+    common::write_json(&input, &sun_floor());
+    let mut outputs = Vec::new();
+    for threads in ["1", "2"] {
+        let out = dir.path().join(format!("out-{threads}.glb"));
+        common::bake_default_in(
+            None,
+            [
+                input.as_os_str(),
+                out.as_os_str(),
+                "--quiet".as_ref(),
+                "--threads".as_ref(),
+                threads.as_ref(),
+            ],
+        )
+        .success();
+        outputs.push(std::fs::read(&out).expect("read the output"));
+    }
+    assert!(outputs[0] == outputs[1], "1 and 2 threads differ");
+}

@@ -108,7 +108,7 @@ fn marks(bake: &Bake, settings: &Settings) -> Marks {
         if p.is_nan() || p <= 1.0 {
             continue;
         }
-        if mesh.level(i) < MAX_LEVELS {
+        if mesh.level(i) < settings.refine_levels {
             wanted.push(i);
         } else if bake.partly_lit.get(i) != Some(&true) {
             at_finest += 1;
@@ -207,14 +207,14 @@ pub fn refine(
                 let at: Vec<usize> = (0..n)
                     .filter(|&i| {
                         m.priority[i] > 1.0
-                            && bake.mesh.level(i) >= MAX_LEVELS
+                            && bake.mesh.level(i) >= settings.refine_levels
                             && bake.partly_lit.get(i) != Some(&true)
                     })
                     .collect();
                 bake.warnings.push(format!(
                     "refinement reached its finest elements (1/{} of the grid's) with {} \
                      elements still above --max-error {:e}: {}",
-                    1u32 << MAX_LEVELS,
+                    1u64 << settings.refine_levels.min(63),
                     m.at_finest,
                     settings.max_error,
                     where_above(scene, &bake, &at)

@@ -180,6 +180,10 @@ pub struct Settings {
     pub refine_requested: bool,
     /// Refinement stops before the mesh passes this many elements.
     pub max_elements: u64,
+    /// Elements are split at most this many times below the grid
+    /// ([`crate::refine::MAX_LEVELS`]; `tools/accuracy-report` lowers it so that its
+    /// reference mesh resolves every refined element).
+    pub refine_levels: u8,
 }
 
 impl Settings {
@@ -292,6 +296,7 @@ impl Settings {
                 && request.load_links.is_none(),
             refine_requested: request.refine == Some(true),
             max_elements: request.max_elements.unwrap_or(crate::DEFAULT_MAX_ELEMENTS),
+            refine_levels: crate::refine::MAX_LEVELS,
         })
     }
 

@@ -216,6 +216,7 @@ fn setting(group: &str, label: String, subdivision: Subdivision, estimator: Esti
         solve: Solve::Direct,
         max_error: None,
         refine: None,
+        refine_levels: None,
     }
 }
 

@@ -78,6 +78,8 @@ pub struct Setting {
     /// Refinement below the grid with this element budget (`--refine on --max-elements N`,
     /// the target from `max_error` or the preset's); `None`: `--refine off`, the uniform mesh.
     pub refine: Option<u64>,
+    /// With `refine`: split elements at most this many times (`None`: the library's limit).
+    pub refine_levels: Option<u8>,
 }
 
 /// A finished bake and what it cost.
@@ -130,6 +132,9 @@ pub fn bake_once(scene: &Scene, setting: &Setting) -> Result<Run> {
         settings.max_error = e;
     }
     settings.contour = setting.contour;
+    if let Some(levels) = setting.refine_levels {
+        settings.refine_levels = levels;
+    }
     settings.visibility_samples = setting.samples;
     settings.dense_solve = match setting.solve {
         Solve::Direct => bake_core::Solve::Direct,
