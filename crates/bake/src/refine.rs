@@ -246,11 +246,38 @@ pub fn refine(
             stopped = format!("stopped at {why}");
             break;
         }
+        // Where the budget cuts, elements tied with the first one left out (within 1e-9:
+        // mirror images of a symmetric scene) are left out too, so that refinement keeps
+        // symmetries.
+        let mut chosen = m.wanted.len().min(room);
+        if chosen < m.wanted.len() {
+            let cut = m.priority[m.wanted[chosen]] * (1.0 + 1e-9);
+            chosen = m.wanted[..chosen]
+                .iter()
+                .take_while(|&&i| m.priority[i] > cut)
+                .count();
+        }
+        if chosen == 0 {
+            above = m.wanted.len() + m.at_finest;
+            bake.warnings.push(format!(
+                "refinement stopped at the element budget --max-elements {} ({n} elements): \
+                 splitting any of the {} elements above --max-error {:e} (tied, e.g. mirror \
+                 images) would pass it: {}",
+                settings.max_elements,
+                m.wanted.len(),
+                settings.max_error,
+                where_above(scene, &bake, &m.wanted)
+            ));
+            stopped = format!(
+                "stopped at the element budget --max-elements {}",
+                settings.max_elements
+            );
+            break;
+        }
         let mut marked = vec![false; n];
-        for &i in m.wanted.iter().take(room) {
+        for &i in m.wanted.iter().take(chosen) {
             marked[i] = true;
         }
-        let chosen = m.wanted.len().min(room);
         let refined = bake.mesh.refine(&marked)?.mesh;
         let spent = lap.elapsed().as_secs_f64();
         let mut next = run_mesh(scene, settings, progress, Some(refined))?;
