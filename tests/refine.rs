@@ -359,3 +359,40 @@ fn refined_bakes_are_deterministic() {
     }
     assert!(outputs[0] == outputs[1], "1 and 2 threads differ");
 }
+
+/// Refinement's options are checked: a budget of 0 is a usage error (exit 2), and `--refine
+/// on` with saved links (built over the grids) is refused as bad input (exit 1).
+#[test]
+fn refinement_options_are_checked() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let cube = common::fixture("cube.gltf");
+    let out = dir.path().join("out.glb");
+    let links = dir.path().join("cube.links");
+    let zero = common::bake_default_in(
+        None,
+        [
+            cube.as_os_str(),
+            out.as_os_str(),
+            "--max-elements".as_ref(),
+            "0".as_ref(),
+        ],
+    );
+    assert_eq!(zero.code, Some(2), "{zero:?}");
+    let saved = common::bake_default_in(
+        None,
+        [
+            cube.as_os_str(),
+            out.as_os_str(),
+            "--refine".as_ref(),
+            "on".as_ref(),
+            "--save-links".as_ref(),
+            links.as_os_str(),
+        ],
+    );
+    assert_eq!(saved.code, Some(1), "{saved:?}");
+    assert!(
+        saved.stderr.contains("--refine on cannot be combined"),
+        "{saved:?}"
+    );
+    assert!(!out.exists() && !links.exists());
+}
