@@ -176,6 +176,18 @@ pub struct Cli {
     /// measured crossover, hierarchical above it; the report says which and why.
     #[arg(long, value_enum, default_value_t = TransportArg::Auto)]
     pub transport: TransportArg,
+    /// Refine where the light changes: after a solve, split elements whose discretisation
+    /// estimate exceeds --max-error (relative to the mean radiosity) or that a light's shadow
+    /// edge crosses, and solve again, until the estimate meets it, --max-elements is reached
+    /// (a warning says where) or nothing changes; vertex values are not smoothed across shadow
+    /// edges. Runs on the dense transport (scenes up to --max-elements); `off` keeps the
+    /// uniform mesh.
+    #[arg(long, value_enum, value_name = "on|off")]
+    pub refine: Option<OnOff>,
+    /// The element budget of refinement [default: 2000, the dense crossover].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub max_elements: Option<u64>,
+
     /// Hierarchical transport: the largest estimated error of one link's contribution to the
     /// radiosity of its receiver, relative to the scene's mean radiosity [default: from
     /// --quality: 0.05 draft, 0.01 normal, 0.002 high].
@@ -247,6 +259,12 @@ pub struct Cli {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum OnOff {
+    On,
+    Off,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum TransportArg {
     Auto,
     Dense,
@@ -300,6 +318,8 @@ impl Cli {
             irradiance: self.target != Target::Vertex,
             save_links: self.save_links.is_some(),
             load_links: self.load_links.clone(),
+            refine: self.refine.map(|r| r == OnOff::On),
+            max_elements: self.max_elements,
         }
     }
 }

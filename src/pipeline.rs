@@ -388,6 +388,18 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             error_bound: a.error_bound.map(|b| b.filter(|b| b.is_finite())),
             error: Some(error_summary(mesh, &bake.error)),
         });
+        let r = &bake.refinement;
+        report.refinement = Some(exporter::report::RefinementInfo {
+            enabled: r.enabled,
+            passes: r.passes,
+            elements_before: r.elements_before,
+            elements_after: r.elements_after,
+            split: r.split,
+            above_target: r.above_target,
+            discontinuity_vertices: r.discontinuity_vertices,
+            discontinuity_edges: r.discontinuity_edges,
+            stopped: r.stopped.clone(),
+        });
         report.warnings = warnings.clone();
         timings.insert("total".to_string(), started.elapsed().as_secs_f64());
         report.timings = timings;

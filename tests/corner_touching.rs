@@ -59,6 +59,8 @@ fn the_corner_touching_cone_quads_bake_with_bounded_work_for_every_estimator() {
                 let request = Request {
                     ff_estimator: Some(estimator),
                     subdivision,
+                    // The uniform mesh this test is about.
+                    refine: Some(false),
                     ..Request::default()
                 };
                 let settings = Settings::resolve(&request, &scene.polygons).expect("settings");

@@ -18,6 +18,8 @@ fn run(name: &str, size: f64, transport: TransportKind, link_tolerance: Option<f
         transport,
         link_tolerance,
         irradiance: true,
+        // The uniform mesh this test is about.
+        refine: Some(false),
         ..Request::default()
     };
     let settings = Settings::resolve(&request, &scene.polygons).expect("settings");
@@ -260,6 +262,8 @@ fn every_phase_of_a_hierarchical_bake_reports_progress() {
         subdivision: Some(Subdivision::MaxSize(0.4)),
         transport: TransportKind::Hierarchical,
         link_tolerance: Some(1e-3),
+        // The uniform mesh this test is about.
+        refine: Some(false),
         ..Request::default()
     };
     let settings = Settings::resolve(&request, &scene.polygons).expect("settings");
@@ -307,6 +311,8 @@ fn a_scene_without_light_builds_no_transport() {
             subdivision: Some(Subdivision::MaxSize(0.4)),
             transport,
             irradiance: true,
+            // The uniform mesh this test is about.
+            refine: Some(false),
             ..Request::default()
         };
         let settings = Settings::resolve(&request, &scene.polygons).expect("settings");

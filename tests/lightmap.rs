@@ -174,6 +174,8 @@ fn solve(path: &Path) -> Solved {
     let scene = importer::load(path).expect("load the scene");
     let request = bake_core::Request {
         irradiance: true,
+        // The uniform mesh this test is about.
+        refine: Some(false),
         ..bake_core::Request::default()
     };
     let settings = bake_core::Settings::resolve(&request, &scene.polygons).expect("settings");

@@ -454,6 +454,8 @@ fn bake_in_process(path: &Path) -> (importer::Scene, bake_core::Bake, Vec<[f64; 
     let scene = importer::load(path).expect("load");
     let request = bake_core::Request {
         irradiance: true,
+        // The uniform mesh these tests are about.
+        refine: Some(false),
         ..bake_core::Request::default()
     };
     let settings = bake_core::Settings::resolve(&request, &scene.polygons).expect("settings");

@@ -10,7 +10,8 @@
 mod common;
 
 use common::{
-    bake, bake_json, blender_installed, data_uri, skip, tools_dir, validator_available, write_json,
+    aim, bake, bake_json, blender_installed, lit_scene as scene, skip, tools_dir,
+    validator_available, write_json,
 };
 use exporter::report::{ElementEntry, Report};
 use serde_json::{json, Value};
@@ -39,75 +40,6 @@ fn black_square() -> Vec<[f32; 3]> {
         [-1.0, 2.0, 1.0],
     );
     vec![a, b, c, a, c, d]
-}
-
-/// A glTF scene: one mesh per (triangles, baseColor) and one light node per light
-/// `(light json, node json without the extension)`.
-fn scene(meshes: &[(Vec<[f32; 3]>, [f64; 3])], lights: &[(Value, Value)]) -> Value {
-    let mut bytes = Vec::new();
-    let mut accessors = Vec::new();
-    let mut views = Vec::new();
-    let mut gltf_meshes = Vec::new();
-    let mut materials = Vec::new();
-    let mut nodes = Vec::new();
-    for (k, (positions, rho)) in meshes.iter().enumerate() {
-        let offset = bytes.len();
-        for p in positions {
-            for v in p {
-                bytes.extend_from_slice(&v.to_le_bytes());
-            }
-        }
-        let mut min = [f32::INFINITY; 3];
-        let mut max = [f32::NEG_INFINITY; 3];
-        for p in positions {
-            for a in 0..3 {
-                min[a] = min[a].min(p[a]);
-                max[a] = max[a].max(p[a]);
-            }
-        }
-        views
-            .push(json!({ "buffer": 0, "byteOffset": offset, "byteLength": positions.len() * 12 }));
-        accessors.push(
-            json!({ "bufferView": k, "componentType": 5126, "count": positions.len(),
-                               "type": "VEC3", "min": min, "max": max }),
-        );
-        materials.push(json!({ "pbrMetallicRoughness": {
-            "baseColorFactor": [rho[0], rho[1], rho[2], 1.0], "metallicFactor": 0.0 } }));
-        gltf_meshes
-            .push(json!({ "primitives": [{ "attributes": { "POSITION": k }, "material": k }] }));
-        nodes.push(json!({ "name": format!("mesh{k}"), "mesh": k }));
-    }
-    let mut light_defs = Vec::new();
-    for (k, (light, node)) in lights.iter().enumerate() {
-        let mut node = node.clone();
-        node["name"] = json!(format!("light{k}"));
-        node["extensions"] = json!({ "KHR_lights_punctual": { "light": k } });
-        nodes.push(node);
-        light_defs.push(light.clone());
-    }
-    let roots: Vec<usize> = (0..nodes.len()).collect();
-    json!({
-        "asset": { "version": "2.0" },
-        "extensionsUsed": ["KHR_lights_punctual"],
-        "extensionsRequired": ["KHR_lights_punctual"],
-        "extensions": { "KHR_lights_punctual": { "lights": light_defs } },
-        "scene": 0,
-        "scenes": [{ "nodes": roots }],
-        "nodes": nodes,
-        "meshes": gltf_meshes,
-        "materials": materials,
-        "accessors": accessors,
-        "bufferViews": views,
-        "buffers": [{ "byteLength": bytes.len(), "uri": data_uri(&bytes) }],
-    })
-}
-
-/// Rotation (x, y, z, w) taking the light's local −Z to the unit vector `d`.
-fn aim(d: [f64; 3]) -> [f64; 4] {
-    // q = normalize(a × d, 1 + a · d) with a = (0, 0, −1).
-    let (x, y, z, w) = (d[1], -d[0], 0.0, 1.0 - d[2]);
-    let n = (x * x + y * y + z * z + w * w).sqrt();
-    [x / n, y / n, z / n, w / n]
 }
 
 /// The floor's elements, with their square's x and z bounds.

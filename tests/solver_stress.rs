@@ -23,6 +23,8 @@ fn run(input: &Path, dir: &Path, args: &[&str]) -> Output {
         .arg("--report")
         .arg(dir.join("report.json"))
         .args(["--ff-estimator", "contour"])
+        // The uniform mesh: these tests hold the solver to ~1e-12 on the mesh they ask for.
+        .args(["--refine", "off"])
         .args(args)
         .output()
         .expect("run bake")

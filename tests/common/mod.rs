@@ -55,8 +55,29 @@ where
     bake_in(None, args)
 }
 
-/// Runs the `bake` binary with `args`, in `dir` when given.
+/// Runs the `bake` binary with `args`, in `dir` when given. A bake that does not say
+/// `--refine` gets `--refine off`: these tests check the uniform mesh they ask for (element
+/// counts, closed forms per element); `tests/refine.rs` bakes with the defaults through
+/// [`bake_default_in`].
 pub fn bake_in<I, S>(dir: Option<&Path>, args: I) -> Run
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<OsStr>,
+{
+    let mut args: Vec<std::ffi::OsString> = args
+        .into_iter()
+        .map(|a| a.as_ref().to_os_string())
+        .collect();
+    let says = |flags: &[&str]| args.iter().any(|a| flags.iter().any(|f| a == f));
+    let preview = args.first().is_some_and(|a| a == "preview");
+    if !preview && !says(&["--refine", "--help", "-h", "--version", "-V"]) {
+        args.extend(["--refine".into(), "off".into()]);
+    }
+    bake_default_in(dir, args)
+}
+
+/// Runs the `bake` binary with exactly `args` (the bake's own defaults), in `dir` when given.
+pub fn bake_default_in<I, S>(dir: Option<&Path>, args: I) -> Run
 where
     I: IntoIterator<Item = S>,
     S: AsRef<OsStr>,
@@ -302,6 +323,26 @@ fn push(array: &mut Value, value: Value) -> usize {
 /// Writes `doc` as `dir/NAME.gltf`, bakes it (`--target vertex`, a report, `--quiet`, then
 /// `args`), asserts exit 0 and returns the report.
 pub fn bake_json(dir: &Path, name: &str, doc: &Value, args: &[&str]) -> exporter::report::Report {
+    bake_json_with(dir, name, doc, args, false)
+}
+
+/// [`bake_json`] with the bake's own defaults (refinement on unless `args` say otherwise).
+pub fn bake_json_default(
+    dir: &Path,
+    name: &str,
+    doc: &Value,
+    args: &[&str],
+) -> exporter::report::Report {
+    bake_json_with(dir, name, doc, args, true)
+}
+
+fn bake_json_with(
+    dir: &Path,
+    name: &str,
+    doc: &Value,
+    args: &[&str],
+    defaults: bool,
+) -> exporter::report::Report {
     let input = dir.join(format!("{name}.gltf"));
     write_json(&input, doc);
     let out = dir.join(format!("{name}-out.gltf"));
@@ -316,7 +357,11 @@ pub fn bake_json(dir: &Path, name: &str, doc: &Value, args: &[&str]) -> exporter
         report.as_os_str(),
     ];
     all.extend(args.iter().map(OsStr::new));
-    bake(all).success();
+    if defaults {
+        bake_default_in(None, all).success();
+    } else {
+        bake(all).success();
+    }
     exporter::report::read_report(&report).expect("read the report")
 }
 
@@ -395,4 +440,73 @@ pub fn validate_clean(files: &[PathBuf]) -> Option<String> {
     }
     assert!(output.status.success(), "{stdout}");
     Some(stdout)
+}
+
+/// A glTF scene: one mesh per (triangles, baseColor) and one light node per light
+/// `(light json, node json without the extension)`.
+pub fn lit_scene(meshes: &[(Vec<[f32; 3]>, [f64; 3])], lights: &[(Value, Value)]) -> Value {
+    let mut bytes = Vec::new();
+    let mut accessors = Vec::new();
+    let mut views = Vec::new();
+    let mut gltf_meshes = Vec::new();
+    let mut materials = Vec::new();
+    let mut nodes = Vec::new();
+    for (k, (positions, rho)) in meshes.iter().enumerate() {
+        let offset = bytes.len();
+        for p in positions {
+            for v in p {
+                bytes.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        let mut min = [f32::INFINITY; 3];
+        let mut max = [f32::NEG_INFINITY; 3];
+        for p in positions {
+            for a in 0..3 {
+                min[a] = min[a].min(p[a]);
+                max[a] = max[a].max(p[a]);
+            }
+        }
+        views
+            .push(json!({ "buffer": 0, "byteOffset": offset, "byteLength": positions.len() * 12 }));
+        accessors.push(
+            json!({ "bufferView": k, "componentType": 5126, "count": positions.len(),
+                               "type": "VEC3", "min": min, "max": max }),
+        );
+        materials.push(json!({ "pbrMetallicRoughness": {
+            "baseColorFactor": [rho[0], rho[1], rho[2], 1.0], "metallicFactor": 0.0 } }));
+        gltf_meshes
+            .push(json!({ "primitives": [{ "attributes": { "POSITION": k }, "material": k }] }));
+        nodes.push(json!({ "name": format!("mesh{k}"), "mesh": k }));
+    }
+    let mut light_defs = Vec::new();
+    for (k, (light, node)) in lights.iter().enumerate() {
+        let mut node = node.clone();
+        node["name"] = json!(format!("light{k}"));
+        node["extensions"] = json!({ "KHR_lights_punctual": { "light": k } });
+        nodes.push(node);
+        light_defs.push(light.clone());
+    }
+    let roots: Vec<usize> = (0..nodes.len()).collect();
+    json!({
+        "asset": { "version": "2.0" },
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensionsRequired": ["KHR_lights_punctual"],
+        "extensions": { "KHR_lights_punctual": { "lights": light_defs } },
+        "scene": 0,
+        "scenes": [{ "nodes": roots }],
+        "nodes": nodes,
+        "meshes": gltf_meshes,
+        "materials": materials,
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{ "byteLength": bytes.len(), "uri": data_uri(&bytes) }],
+    })
+}
+
+/// Rotation (x, y, z, w) taking the light's local −Z to the unit vector `d`.
+pub fn aim(d: [f64; 3]) -> [f64; 4] {
+    // q = normalize(a × d, 1 + a · d) with a = (0, 0, −1).
+    let (x, y, z, w) = (d[1], -d[0], 0.0, 1.0 - d[2]);
+    let n = (x * x + y * y + z * z + w * w).sqrt();
+    [x / n, y / n, z / n, w / n]
 }

@@ -98,12 +98,21 @@ pub fn estimate(inputs: &Inputs) -> Vec<Parts> {
         .collect()
 }
 
-/// Per element: the other elements of its polygon that share a corner with it, in index
-/// order.
+/// Per element: the other elements of its polygon that share a vertex of its outline (its
+/// corners, and on a refined mesh the hanging vertices on its edges) with it, in index order.
 pub fn neighbours(mesh: &ElementMesh) -> Vec<Vec<u32>> {
+    neighbours_where(mesh, |_, _| true)
+}
+
+/// Like [`neighbours`], keeping only the pairs `keep(i, j)` accepts (e.g. on the same side of
+/// every shadow edge).
+pub fn neighbours_where(
+    mesh: &ElementMesh,
+    keep: impl Fn(usize, usize) -> bool + Sync,
+) -> Vec<Vec<u32>> {
     let mut at_vertex: Vec<Vec<u32>> = vec![Vec::new(); mesh.vertices.len()];
-    for (i, e) in mesh.elements.iter().enumerate() {
-        for &v in e.corner_indices() {
+    for i in 0..mesh.elements.len() {
+        for &v in mesh.outline(i) {
             if let Some(list) = at_vertex.get_mut(v as usize) {
                 list.push(i as u32);
             }
@@ -113,13 +122,17 @@ pub fn neighbours(mesh: &ElementMesh) -> Vec<Vec<u32>> {
         .par_iter()
         .enumerate()
         .map(|(i, e)| {
-            let mut list: Vec<u32> = e
-                .corner_indices()
+            let mut list: Vec<u32> = mesh
+                .outline(i)
                 .iter()
                 .filter_map(|&v| at_vertex.get(v as usize))
                 .flatten()
                 .copied()
-                .filter(|&j| j as usize != i && mesh.elements[j as usize].polygon == e.polygon)
+                .filter(|&j| {
+                    j as usize != i
+                        && mesh.elements[j as usize].polygon == e.polygon
+                        && keep(i, j as usize)
+                })
                 .collect();
             list.sort_unstable();
             list.dedup();
@@ -131,7 +144,7 @@ pub fn neighbours(mesh: &ElementMesh) -> Vec<Vec<u32>> {
 /// `|b_i − L(c_i)|` per band, `L` the least-squares plane through the neighbours' values at
 /// their centroids (in the element's plane); half the largest neighbour difference where the
 /// neighbours do not span a plane.
-fn discretisation(
+pub fn discretisation(
     mesh: &ElementMesh,
     b: &[[f64; BANDS]],
     i: usize,

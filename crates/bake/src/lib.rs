@@ -16,6 +16,7 @@
 pub mod accuracy;
 pub mod error;
 pub mod presets;
+pub mod refine;
 mod settings;
 
 pub use settings::{
@@ -126,6 +127,13 @@ pub struct Bake {
     pub direct: Vec<[f64; BANDS]>,
     /// Per light of the scene: what its direct-light pass did.
     pub light_stats: Vec<direct::LightStats>,
+    /// Per element: some light's shadow edge crosses it ([`direct::DirectLight::partly_lit`]).
+    pub partly_lit: Vec<bool>,
+    /// Per element: which side of every shadow edge it is on
+    /// ([`direct::DirectLight::shadow_class`]).
+    pub shadow_class: Vec<u64>,
+    /// What refinement did.
+    pub refinement: refine::Refinement,
     pub solution: Solution,
     /// The solve that ran.
     pub solve: Solve,
@@ -180,8 +188,26 @@ pub const MAX_BOUNCES: u32 = 10_000;
 /// Scenes up to this many elements get the dense transport under `--transport auto`.
 pub const DENSE_CROSSOVER: usize = 2_000;
 
-/// Bakes `scene` with `settings`: mesh, visibility, transport, solve (and `H = F b` if asked).
+/// The default `--max-elements`: refinement runs on the dense transport, so its budget is the
+/// dense crossover.
+pub const DEFAULT_MAX_ELEMENTS: u64 = DENSE_CROSSOVER as u64;
+
+/// Bakes `scene` with `settings`: mesh, visibility, transport, solve (and `H = F b` if asked),
+/// then, with [`Settings::refine`], splits elements where the light changes and solves again
+/// until the estimate meets the target ([`refine`]).
 pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Result<Bake, BakeError> {
+    let first = run_mesh(scene, settings, progress, None)?;
+    refine::refine(scene, settings, progress, first)
+}
+
+/// One bake on the mesher's grids (`given` = `None`) or on a given (refined) element mesh,
+/// which the dense transport takes as it is.
+pub(crate) fn run_mesh(
+    scene: &Scene,
+    settings: &Settings,
+    progress: &dyn Progress,
+    given: Option<ElementMesh>,
+) -> Result<Bake, BakeError> {
     let mut timings = Vec::new();
     let mut peak_rss_mib = Vec::new();
     let mut lap = Instant::now();
@@ -196,13 +222,25 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
 
     // The cost first, from the element count alone: a request too large for this machine is
     // refused before anything is allocated.
-    let planned = mesher::element_count(&scene.polygons, settings.subdivision)?;
+    let planned = match &given {
+        Some(mesh) => mesh.elements.len() as u64,
+        None => mesher::element_count(&scene.polygons, settings.subdivision)?,
+    };
     let rho_bound = scene_rho_bound(scene);
-    let mut transport = choose_transport(
-        settings,
-        usize::try_from(planned).unwrap_or(usize::MAX),
-        rho_bound,
-    );
+    let mut transport = match &given {
+        // The hierarchical transport builds its trees over the mesher's grids.
+        Some(mesh) if !mesh.is_grid() => TransportChoice {
+            kind: TransportKind::Dense,
+            reason: format!(
+                "{planned} elements of a refined mesh: the dense transport takes any element                  mesh (the hierarchical one's trees are built over the element grids)"
+            ),
+        },
+        _ => choose_transport(
+            settings,
+            usize::try_from(planned).unwrap_or(usize::MAX),
+            rho_bound,
+        ),
+    };
     let amplification = accuracy::condition_bound(rho_bound, 0.0);
     if transport.kind == TransportKind::Hierarchical && amplification >= BRIGHT_AMPLIFICATION {
         warnings.push(format!(
@@ -214,7 +252,10 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     }
     let solve = settings.solve(transport.kind);
     check_memory(planned, transport.kind, solve, scene_bands(scene))?;
-    let mesh = mesher::mesh(&scene.polygons, settings.subdivision)?;
+    let mesh = match given {
+        Some(mesh) => mesh,
+        None => mesher::mesh(&scene.polygons, settings.subdivision)?,
+    };
     let n = mesh.elements.len();
     let (rho, emission) = element_values(scene, &mesh);
     let rho_max = rho.iter().flatten().copied().fold(0.0f64, f64::max);
@@ -534,6 +575,9 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
         emission,
         direct,
         light_stats: lit.stats,
+        partly_lit: lit.partly_lit,
+        shadow_class: lit.shadow_class,
+        refinement: refine::Refinement::default(),
         solution,
         solve,
         irradiance,

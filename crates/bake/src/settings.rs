@@ -97,6 +97,12 @@ pub struct Request {
     pub save_links: bool,
     /// Read the hierarchical transport from this file instead of linking (`--load-links`).
     pub load_links: Option<std::path::PathBuf>,
+    /// `--refine on|off`: split elements where the light changes and solve again (on when
+    /// `None`).
+    pub refine: Option<bool>,
+    /// `--max-elements`: the element budget of refinement ([`crate::DEFAULT_MAX_ELEMENTS`]
+    /// when `None`).
+    pub max_elements: Option<u64>,
 }
 
 impl Default for Request {
@@ -121,6 +127,8 @@ impl Default for Request {
             irradiance: false,
             save_links: false,
             load_links: None,
+            refine: None,
+            max_elements: None,
         }
     }
 }
@@ -166,6 +174,16 @@ pub struct Settings {
     /// `--save-links` / `--load-links` (either makes the transport hierarchical).
     pub save_links: bool,
     pub load_links: Option<std::path::PathBuf>,
+    /// Refine where the light changes ([`crate::refine`]).
+    pub refine: bool,
+    /// Whether `--refine on` was given (then a bake that cannot refine says why).
+    pub refine_requested: bool,
+    /// Refinement stops before the mesh passes this many elements.
+    pub max_elements: u64,
+    /// Elements are split at most this many times below the grid
+    /// ([`crate::refine::MAX_LEVELS`]; `tools/accuracy-report` lowers it so that its
+    /// reference mesh resolves every refined element).
+    pub refine_levels: u8,
 }
 
 impl Settings {
@@ -222,6 +240,18 @@ impl Settings {
                 )));
             }
         }
+        if request.refine == Some(true) && (request.save_links || request.load_links.is_some()) {
+            return Err(BakeError::Options(
+                "--refine on cannot be combined with --save-links or --load-links: links are \
+                 built over the element grids, which refinement changes"
+                    .into(),
+            ));
+        }
+        if request.max_elements == Some(0) {
+            return Err(BakeError::Options(
+                "--max-elements must be at least 1".into(),
+            ));
+        }
         let default = IterativeOptions::default();
         let iterative = |tolerance: f64| IterativeOptions {
             tolerance: request.tolerance.unwrap_or(tolerance),
@@ -260,6 +290,13 @@ impl Settings {
             irradiance: request.irradiance,
             save_links: request.save_links,
             load_links: request.load_links.clone(),
+            // Links saved or loaded are the grid's: refinement would change the mesh.
+            refine: request.refine.unwrap_or(true)
+                && !request.save_links
+                && request.load_links.is_none(),
+            refine_requested: request.refine == Some(true),
+            max_elements: request.max_elements.unwrap_or(crate::DEFAULT_MAX_ELEMENTS),
+            refine_levels: crate::refine::MAX_LEVELS,
         })
     }
 
@@ -328,6 +365,8 @@ impl Settings {
             "link_samples": hierarchical.then_some(self.link_samples),
             "light_samples": self.light_samples,
             "load_links": self.load_links.as_ref().map(|p| p.to_string_lossy().into_owned()),
+            "refine": self.refine,
+            "max_elements": self.max_elements,
         })
     }
 }

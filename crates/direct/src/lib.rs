@@ -92,6 +92,43 @@ pub struct DirectLight {
     pub illuminance: Vec<[f64; 3]>,
     /// Per light, in the order given.
     pub stats: Vec<LightStats>,
+    /// Per element: some light's shadow covers part of it but not all (a sun's exact lit
+    /// share, or the share of a point or spot light's shadow rays that reach it, strictly
+    /// between 0 and 1): a shadow edge crosses it.
+    pub partly_lit: Vec<bool>,
+    /// Per element: a key of how shadows fall on it, light by light (lit, in shadow, or
+    /// partly); elements with the same key are on the same side of every shadow edge, so
+    /// smoothing may blend them. Unshadowed elements count as lit (a spot's cone edge is not
+    /// a shadow: its falloff is continuous).
+    pub shadow_class: Vec<u64>,
+}
+
+/// How a light's shadows fall on one element.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Shade {
+    /// No shadow on it (or nothing could shadow it).
+    Lit,
+    /// Wholly in shadow.
+    Dark,
+    /// A shadow edge crosses it.
+    Partial,
+}
+
+/// Lit shares within this of 0 or 1 are whole: rounding of the clipped areas, or a shadow
+/// edge along the element's edge, is not a shadow edge across it.
+pub const SHARE_TOLERANCE: f64 = 1e-9;
+
+impl Shade {
+    /// The shade of a lit share in [0, 1].
+    pub fn of_share(share: f64) -> Shade {
+        if share <= SHARE_TOLERANCE {
+            Shade::Dark
+        } else if share >= 1.0 - SHARE_TOLERANCE {
+            Shade::Lit
+        } else {
+            Shade::Partial
+        }
+    }
 }
 
 /// The mean illuminance of every element of `mesh` from `lights` (see the crate docs).
@@ -103,6 +140,8 @@ pub fn illuminate(
     options: &Options,
 ) -> DirectLight {
     let mut illuminance = vec![[0.0; 3]; mesh.elements.len()];
+    let mut partly_lit = vec![false; mesh.elements.len()];
+    let mut shadow_class = vec![0xcbf2_9ce4_8422_2325u64; mesh.elements.len()];
     let mut stats = Vec::with_capacity(lights.len());
     for (l, light) in lights.iter().enumerate() {
         let pass = LightPass::new(light, l, occluders, options);
@@ -112,7 +151,7 @@ pub fn illuminate(
             .into_par_iter()
             .map(|k| pass.may_shadow(&occluders.polygon(k)))
             .collect();
-        let per_element: Vec<(f64, LightStats)> = (0..mesh.elements.len())
+        let per_element: Vec<(f64, LightStats, Shade)> = (0..mesh.elements.len())
             .into_par_iter()
             .map_init(Scratch::default, |scratch, i| {
                 let shadowed = polygon_shadowed[mesh.elements[i].polygon as usize];
@@ -121,15 +160,24 @@ pub fn illuminate(
             .collect();
         let band = light.band_intensity();
         let mut total = LightStats::default();
-        for (e, (g, s)) in illuminance.iter_mut().zip(&per_element) {
+        for (i, (e, (g, s, shade))) in illuminance.iter_mut().zip(&per_element).enumerate() {
             for c in 0..3 {
                 e[c] += g * band[c];
             }
             total.add(s);
+            partly_lit[i] |= *shade == Shade::Partial;
+            // FNV-1a over the shades, light by light.
+            shadow_class[i] ^= *shade as u64 + 1;
+            shadow_class[i] = shadow_class[i].wrapping_mul(0x0100_0000_01b3);
         }
         stats.push(total);
     }
-    DirectLight { illuminance, stats }
+    DirectLight {
+        illuminance,
+        stats,
+        partly_lit,
+        shadow_class,
+    }
 }
 
 /// Buffers reused across the elements one thread handles (no allocation per element).
@@ -207,31 +255,33 @@ impl<'a> LightPass<'a> {
         }
     }
 
-    /// Element `i`: its illuminance per unit light intensity, and what it took.
+    /// Element `i`: its illuminance per unit light intensity, what it took, and how the
+    /// light's shadows fall on it.
     fn element(
         &self,
         mesh: &ElementMesh,
         i: usize,
         polygon_shadowed: bool,
         scratch: &mut Scratch,
-    ) -> (f64, LightStats) {
+    ) -> (f64, LightStats, Shade) {
         let patch = Patch::element(mesh, i);
         let area = mesh.elements[i].area;
         let mut stats = LightStats::default();
         if area <= 0.0 || area.is_nan() {
-            return (0.0, stats);
+            return (0.0, stats, Shade::Lit);
         }
+        let mut shade = Shade::Lit;
         let g = match self.light.kind {
             LightKind::Directional => {
-                self.directional(&patch, i, polygon_shadowed, scratch, &mut stats)
+                self.directional(&patch, i, polygon_shadowed, scratch, &mut stats, &mut shade)
             }
-            _ => self.point(&patch, i, area, polygon_shadowed, &mut stats),
+            _ => self.point(&patch, i, area, polygon_shadowed, &mut stats, &mut shade),
         };
         if g > 0.0 {
             stats.elements_lit = 1;
             stats.flux = g * area;
         }
-        (g, stats)
+        (g, stats, shade)
     }
 
     /// Point and spot lights: (1/A) ∫ falloff · visibility · cos θ / r² dA.
@@ -242,6 +292,7 @@ impl<'a> LightPass<'a> {
         area: f64,
         polygon_shadowed: bool,
         stats: &mut LightStats,
+        shade: &mut Shade,
     ) -> f64 {
         let l = self.light.position;
         let n = patch.normal();
@@ -279,6 +330,7 @@ impl<'a> LightPass<'a> {
         let lift = n * self.occluders.ray_offset();
         let polygon = patch.polygon();
         let mut sum = 0.0;
+        let (mut rays, mut blocked) = (0u32, 0u32);
         for_each_cell(corners, k, |cell, centre, jitter| {
             let w = self.falloff(centre - l);
             if w == 0.0 {
@@ -291,12 +343,21 @@ impl<'a> LightPass<'a> {
                 let to_light = l - p;
                 let end = l - to_light.normalize_or_zero() * self.occluders.ray_offset();
                 stats.rays_cast += 1;
+                rays += 1;
                 if self.occluders.segment_blocked(p, end, [polygon, polygon]) {
+                    blocked += 1;
                     return;
                 }
             }
             sum += w * solid_angle(l, cell);
         });
+        if rays > 0 {
+            *shade = match blocked {
+                0 => Shade::Lit,
+                b if b == rays => Shade::Dark,
+                _ => Shade::Partial,
+            };
+        }
         sum / area
     }
 
@@ -327,6 +388,7 @@ impl<'a> LightPass<'a> {
         polygon_shadowed: bool,
         scratch: &mut Scratch,
         stats: &mut LightStats,
+        shade: &mut Shade,
     ) -> f64 {
         let n = patch.normal();
         let d = self.light.direction;
@@ -350,10 +412,13 @@ impl<'a> LightPass<'a> {
             .any(|&k| self.occluders.has_cutouts(k))
         {
             // An occluder with alpha cut-outs has no exact shadow polygon: rays.
-            return cos * self.sampled_share(patch, i, stats);
+            let share = self.sampled_share(patch, i, stats);
+            *shade = Shade::of_share(share);
+            return cos * share;
         }
         stats.elements_clipped = 1;
         let lit = self.lit_share(patch, cos, scratch);
+        *shade = Shade::of_share(lit);
         cos * lit
     }
 

@@ -151,8 +151,8 @@ fn group_elements(scene: &Scene, mesh: &ElementMesh) -> Groups {
 /// corner.
 fn vertex_maxima(mesh: &ElementMesh, values: &[[f64; 3]]) -> Vec<[f64; 3]> {
     let mut out = vec![[0.0f64; 3]; mesh.vertices.len()];
-    for (element, value) in mesh.elements.iter().zip(values) {
-        for &v in element.corner_indices() {
+    for (i, value) in values.iter().enumerate().take(mesh.elements.len()) {
+        for &v in mesh.outline(i) {
             if let Some(slot) = out.get_mut(v as usize) {
                 for c in 0..3 {
                     slot[c] = slot[c].max(value[c]);
@@ -222,6 +222,7 @@ fn check_bake(bake: &Bake) -> Result<(), ExportError> {
         if element
             .corner_indices()
             .iter()
+            .chain(mesh.outline(i))
             .any(|&c| c as usize >= mesh.vertices.len())
         {
             return Err(invalid(format!("element {i} refers to a missing vertex")));
@@ -324,6 +325,8 @@ struct PrimitiveWriter<'a> {
     shared: HashMap<(u32, u32), u32>,
     /// Smooth shading with an error estimate: the largest error around each mesh vertex.
     vertex_error: Option<&'a [[f64; 3]]>,
+    /// One element's triangles (reused).
+    triangles: Vec<[u32; 3]>,
     data: PrimitiveData,
 }
 
@@ -346,6 +349,7 @@ impl<'a> PrimitiveWriter<'a> {
             colour,
             shared: HashMap::new(),
             vertex_error: None,
+            triangles: Vec::new(),
             data,
         }
     }
@@ -364,17 +368,25 @@ impl<'a> PrimitiveWriter<'a> {
                 ExportError::NonFinite { what }
             }
         })?;
-        let mut corners = Vec::with_capacity(4);
-        for &vertex in element.corner_indices() {
-            let output = match self.smoothed {
+        // The element's outline: its corners and, on a refined mesh, the hanging vertices
+        // its neighbours' splits put on its edges, so that the triangles conform.
+        let mesh = self.bake.mesh;
+        let outline = mesh.outline(index);
+        let mut output = Vec::with_capacity(outline.len());
+        for &vertex in outline {
+            let out = match self.smoothed {
                 Some(values) => self.shared_vertex(index, vertex, normal, values[vertex as usize]),
                 None => self.push_vertex(index, vertex, normal, self.bake.radiosity[index]),
             }?;
-            corners.push(output);
+            output.push((vertex, out));
         }
-        self.push_triangle(corners[0], corners[1], corners[2]);
-        if corners.len() == 4 {
-            self.push_triangle(corners[0], corners[2], corners[3]);
+        let at = |v: u32| output.iter().find(|(k, _)| *k == v).map(|&(_, o)| o);
+        mesh.triangles(index, &mut self.triangles);
+        for k in 0..self.triangles.len() {
+            let [a, b, c] = self.triangles[k];
+            if let (Some(a), Some(b), Some(c)) = (at(a), at(b), at(c)) {
+                self.push_triangle(a, b, c);
+            }
         }
         Ok(())
     }

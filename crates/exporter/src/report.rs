@@ -58,6 +58,9 @@ pub struct Report {
     /// leaves (absent in older reports).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub accuracy: Option<AccuracyInfo>,
+    /// What refinement below the element grid did (absent in older reports).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refinement: Option<RefinementInfo>,
     pub warnings: Vec<String>,
     pub polygons: Vec<PolygonEntry>,
     /// Which per-element data follow (absent in older reports: all).
@@ -235,6 +238,25 @@ pub struct SolverInfo {
     pub iterations: [u32; 3],
 }
 
+/// `--refine` and what it did: solves on refined meshes, elements before and after, and the
+/// vertices copied at shadow edges so smoothing does not cross them.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RefinementInfo {
+    pub enabled: bool,
+    /// Solves after the first, each on a refined mesh.
+    pub passes: u32,
+    pub elements_before: usize,
+    pub elements_after: usize,
+    /// Elements split over all passes.
+    pub split: usize,
+    /// Elements still above the target when it stopped.
+    pub above_target: usize,
+    pub discontinuity_vertices: usize,
+    pub discontinuity_edges: usize,
+    /// Why it stopped.
+    pub stopped: String,
+}
+
 /// `--max-error` and what it led to.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AccuracyInfo {
@@ -406,6 +428,7 @@ impl Report {
             transport: TransportInfo::default(),
             lights: Vec::new(),
             accuracy: None,
+            refinement: None,
             warnings: scene.warnings.clone(),
             polygons: Report::polygons_from(scene),
             elements_included: ElementsIncluded::All,

@@ -1,6 +1,9 @@
 //! The smoothed field on one polygon: its element grid's vertex values, interpolated the way
 //! the element mesh is built (bilinear over a quad's elements, linear over a triangle's), and
 //! the weld that makes coplanar neighbours of the same material agree along shared edges.
+//! A refined mesh (not the mesher's grids) is reconstructed from its elements instead:
+//! linear over each element's conforming triangles (`ElementMesh::triangles`, the ones the
+//! vertex bake writes), found through a bucket grid over the polygon's plane.
 
 use crate::LightmapError;
 use glam::{DVec2, DVec3};
@@ -8,8 +11,10 @@ use importer::Polygon;
 use mesher::{ElementMesh, PatchGrid};
 
 /// How a polygon's vertex grid is laid out (see `mesher::mesh`).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub(crate) enum Grid {
+    /// A refined mesh: the polygon's element triangles.
+    Elements(Box<Locator>),
     /// (nu+1)×(nv+1) vertices, row-major in t: vertex (i, j) is `base + j (nu+1) + i`, at the
     /// bilinear point P(i/nu, j/nv) of the quad v0 v1 v2 v3.
     Quad { base: u32, nu: u32, nv: u32 },
@@ -45,6 +50,9 @@ impl Field {
         let element_count = patch.elements.len() as u64;
         if element_count == 0 || patch.vertices.end as usize > mesh.vertices.len() {
             return Err(bad("no elements or missing vertices"));
+        }
+        if !mesh.is_grid() {
+            return Field::refined(polygon, patch, mesh, index);
         }
         let grid = match v.len() {
             4 => {
@@ -91,7 +99,8 @@ impl Field {
         field.corners = v.iter().map(|p| field.to_plane(*p)).collect();
         // The grid's corner vertices must be the polygon's corners.
         let size = v.iter().map(|p| p.distance(v[0])).fold(0.0, f64::max);
-        let corner_ids: Vec<u32> = match grid {
+        let corner_ids: Vec<u32> = match field.grid {
+            Grid::Elements(_) => Vec::new(),
             Grid::Quad { base, nu, nv } => vec![
                 base,
                 base + nu,
@@ -125,6 +134,7 @@ impl Field {
     pub(crate) fn params(&self, q: DVec2) -> DVec2 {
         let c = &self.corners;
         match self.grid {
+            Grid::Elements(_) => q,
             Grid::Quad { .. } => inverse_bilinear(q, c[0], c[1], c[2], c[3]),
             Grid::Triangle { .. } => {
                 let (b, g, h) = (c[1] - c[0], c[2] - c[0], q - c[0]);
@@ -139,6 +149,7 @@ impl Field {
     pub(crate) fn value_at_params(&self, p: DVec2, values: &[[f64; 3]]) -> [f64; 3] {
         let at = |id: u32| values[id as usize];
         match self.grid {
+            Grid::Elements(ref locator) => locator.value_at(p, values),
             Grid::Quad { base, nu, nv } => {
                 let (x, y) = (p.x * f64::from(nu), p.y * f64::from(nv));
                 let i = clamp_cell(x, nu);
@@ -186,6 +197,7 @@ impl Field {
     pub(crate) fn boundary_vertices(&self) -> Vec<u32> {
         let mut ids = Vec::new();
         match self.grid {
+            Grid::Elements(ref locator) => ids.clone_from(&locator.boundary),
             Grid::Quad { base, nu, nv } => {
                 for j in 0..=nv {
                     for i in 0..=nu {
@@ -218,6 +230,181 @@ impl Field {
             let edge = b - a;
             cross(edge, q - a) >= -tol * edge.length()
         })
+    }
+}
+
+impl Field {
+    /// The field of polygon `index` on a refined mesh: its elements' triangles.
+    fn refined(
+        polygon: &Polygon,
+        patch: &PatchGrid,
+        mesh: &ElementMesh,
+        index: usize,
+    ) -> Result<Field, LightmapError> {
+        let bad = |why: &str| LightmapError::InvalidData(format!("polygon {index}: {why}"));
+        let v = &polygon.vertices;
+        let e1 = (v[1] - v[0])
+            .try_normalize()
+            .ok_or_else(|| bad("zero-length edge"))?;
+        let mut field = Field {
+            origin: v[0],
+            e1,
+            e2: polygon.normal.cross(e1),
+            corners: Vec::new(),
+            grid: Grid::Triangle { base: 0, n: 1 },
+            normal: polygon.normal,
+        };
+        field.corners = v.iter().map(|p| field.to_plane(*p)).collect();
+        let base = patch.vertices.start;
+        let points: Vec<DVec2> = patch
+            .vertices
+            .clone()
+            .map(|k| field.to_plane(mesh.vertices[k as usize]))
+            .collect();
+        let inside = |k: u32| patch.vertices.contains(&k);
+        let mut tris = Vec::new();
+        let mut scratch = Vec::new();
+        for i in patch.elements.clone() {
+            if i as usize >= mesh.elements.len() {
+                return Err(bad("missing element"));
+            }
+            mesh.triangles(i as usize, &mut scratch);
+            for t in &scratch {
+                if !t.iter().all(|&k| inside(k)) {
+                    return Err(bad(
+                        "an element's vertex lies outside its polygon's vertices",
+                    ));
+                }
+                tris.push((*t, t.map(|k| points[(k - base) as usize])));
+            }
+        }
+        if tris.is_empty() {
+            return Err(bad("no triangles"));
+        }
+        let size = v.iter().map(|p| p.distance(v[0])).fold(0.0, f64::max);
+        let tol = 1e-9 * size;
+        let corners = field.corners.clone();
+        let boundary: Vec<u32> = (0..points.len())
+            .filter(|&k| {
+                let q = points[k];
+                (0..corners.len()).any(|j| {
+                    let (a, b) = (corners[j], corners[(j + 1) % corners.len()]);
+                    let d = b - a;
+                    cross(d, q - a).abs() <= tol * d.length()
+                })
+            })
+            .map(|k| base + k as u32)
+            .collect();
+        field.grid = Grid::Elements(Box::new(Locator::new(base, points, tris, boundary)));
+        Ok(field)
+    }
+}
+
+/// The triangles of a refined polygon and a bucket grid over them (plane coordinates).
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Locator {
+    /// The polygon's first mesh vertex.
+    base: u32,
+    /// Plane position of each of the polygon's mesh vertices (from `base`).
+    points: Vec<DVec2>,
+    /// Mesh vertex ids and plane positions of each triangle.
+    tris: Vec<([u32; 3], [DVec2; 3])>,
+    lo: DVec2,
+    cell: DVec2,
+    cells: [usize; 2],
+    /// Per bucket (row-major), the triangles whose box meets it.
+    buckets: Vec<Vec<u32>>,
+    /// Mesh vertex ids on the polygon's boundary, in id order.
+    boundary: Vec<u32>,
+}
+
+impl Locator {
+    fn new(
+        base: u32,
+        points: Vec<DVec2>,
+        tris: Vec<([u32; 3], [DVec2; 3])>,
+        boundary: Vec<u32>,
+    ) -> Locator {
+        let mut lo = DVec2::splat(f64::INFINITY);
+        let mut hi = DVec2::splat(f64::NEG_INFINITY);
+        for (_, p) in &tris {
+            for q in p {
+                lo = lo.min(*q);
+                hi = hi.max(*q);
+            }
+        }
+        let side = (tris.len() as f64).sqrt().ceil().clamp(1.0, 1024.0) as usize;
+        let cells = [side, side];
+        let cell = ((hi - lo) / side as f64).max(DVec2::splat(f64::MIN_POSITIVE));
+        let mut buckets = vec![Vec::new(); side * side];
+        let index = |q: DVec2| {
+            let c = (q - lo) / cell;
+            [
+                (c.x.max(0.0) as usize).min(side - 1),
+                (c.y.max(0.0) as usize).min(side - 1),
+            ]
+        };
+        for (k, (_, p)) in tris.iter().enumerate() {
+            let a = index(p[0].min(p[1]).min(p[2]));
+            let b = index(p[0].max(p[1]).max(p[2]));
+            for y in a[1]..=b[1] {
+                for x in a[0]..=b[0] {
+                    buckets[y * side + x].push(k as u32);
+                }
+            }
+        }
+        Locator {
+            base,
+            points,
+            tris,
+            lo,
+            cell,
+            cells,
+            buckets,
+            boundary,
+        }
+    }
+
+    /// Barycentric coordinates of `q` in triangle `p`.
+    fn barycentric(p: &[DVec2; 3], q: DVec2) -> [f64; 3] {
+        let det = cross(p[1] - p[0], p[2] - p[0]);
+        let b = cross(q - p[0], p[2] - p[0]) / det;
+        let c = cross(p[1] - p[0], q - p[0]) / det;
+        [1.0 - b - c, b, c]
+    }
+
+    /// The field at plane point `q`: linear over the triangle containing it (the one it is
+    /// least outside of, in barycentric terms, for points outside the polygon).
+    fn value_at(&self, q: DVec2, values: &[[f64; 3]]) -> [f64; 3] {
+        let c = (q - self.lo) / self.cell;
+        let in_grid = c.x >= 0.0
+            && c.y >= 0.0
+            && (c.x as usize) < self.cells[0]
+            && (c.y as usize) < self.cells[1];
+        let best = |candidates: &mut dyn Iterator<Item = usize>| {
+            let mut best: Option<(f64, usize, [f64; 3])> = None;
+            for k in candidates {
+                let w = Self::barycentric(&self.tris[k].1, q);
+                let worst = w[0].min(w[1]).min(w[2]);
+                if worst.is_finite() && best.is_none_or(|(b, _, _)| worst > b) {
+                    best = Some((worst, k, w));
+                }
+            }
+            best
+        };
+        let mut found = None;
+        if in_grid {
+            let bucket = &self.buckets[c.y as usize * self.cells[0] + c.x as usize];
+            found = best(&mut bucket.iter().map(|&k| k as usize)).filter(|b| b.0 >= -1e-9);
+        }
+        if found.is_none() {
+            found = best(&mut (0..self.tris.len()));
+        }
+        let Some((_, k, w)) = found else {
+            return [0.0; 3];
+        };
+        let ids = self.tris[k].0;
+        std::array::from_fn(|band| (0..3).map(|j| w[j] * values[ids[j] as usize][band]).sum())
     }
 }
 
@@ -322,6 +509,7 @@ impl Field {
     pub(crate) fn vertex_point(&self, id: u32) -> DVec2 {
         let c = &self.corners;
         match self.grid {
+            Grid::Elements(ref locator) => locator.points[(id - locator.base) as usize],
             Grid::Quad { base, nu, nv } => {
                 let local = id - base;
                 let (i, j) = (local % (nu + 1), local / (nu + 1));

@@ -3,13 +3,21 @@
 //! elements"), and smooths element values to vertices for display (the paper's linear
 //! interpolation, §4, Figure 8).
 //!
-//! Public API: [`mesh`] → [`ElementMesh`]; [`ElementMesh::smooth`].
-//! A polygon's elements share one vertex grid ([`PatchGrid`]); grids are not shared between
-//! polygons, so creases and material borders keep their own values.
+//! Public API: [`mesh`] → [`ElementMesh`]; [`ElementMesh::smooth`]; [`ElementMesh::refine`]
+//! (split chosen elements below the grid: quads 2 × 2 at their edge midpoints, triangles into
+//! 4) and [`ElementMesh::split_at_discontinuities`] (one vertex copy per side of a detected
+//! discontinuity, so smoothing does not blend across it); [`ElementMesh::triangles`], the
+//! conforming triangulation of an element that uses the hanging vertices on its edges.
+//! A polygon's elements share one vertex set ([`PatchGrid`]); vertex sets are not shared
+//! between polygons, so creases and material borders keep their own values. It is not a
+//! general remesher: elements stay planar convex triangles and quads of their polygon.
 
 use glam::DVec3;
 use importer::Polygon;
 use std::ops::Range;
+
+mod refine;
+pub use refine::Refined;
 
 /// How finely to subdivide.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -57,6 +65,17 @@ pub struct ElementMesh {
     pub elements: Vec<Element>,
     /// One per input polygon, in polygon order.
     pub patches: Vec<PatchGrid>,
+    /// Per element: how many times it was split below the mesher's grid ([`ElementMesh::refine`]);
+    /// empty when nothing was (all 0).
+    pub levels: Vec<u8>,
+    /// Per element, when the mesh is no longer the mesher's regular grids (refined, or vertices
+    /// split at discontinuities): its boundary loop, counter-clockwise from corner 0, with the
+    /// hanging vertices neighbours' splits put on its edges. Empty for the grids (the loop is
+    /// then the corners).
+    pub outlines: Vec<Vec<u32>>,
+    /// Edges (pairs of vertex positions' indices on one side) where smoothing was stopped
+    /// because the light is discontinuous there ([`ElementMesh::split_at_discontinuities`]).
+    pub discontinuities: Vec<[u32; 2]>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -303,12 +322,15 @@ fn element(
 impl ElementMesh {
     /// Area-weighted average, at each vertex, of the values of the elements of the same
     /// polygon that touch it: the paper's linear smoothing of element intensities (§3, §4).
+    /// On a refined mesh an element touches the hanging vertices on its edges too (its
+    /// outline), so a hanging vertex averages both sides consistently; across a split
+    /// discontinuity each side has its own vertex copy and so its own average.
     /// Returns one value per entry of [`ElementMesh::vertices`].
     pub fn smooth(&self, element_values: &[[f64; 3]]) -> Vec<[f64; 3]> {
         let mut sum = vec![[0.0f64; 3]; self.vertices.len()];
         let mut weight = vec![0.0f64; self.vertices.len()];
-        for (e, value) in self.elements.iter().zip(element_values) {
-            for &c in e.corner_indices() {
+        for (i, (e, value)) in self.elements.iter().zip(element_values).enumerate() {
+            for &c in self.outline(i) {
                 let c = c as usize;
                 weight[c] += e.area;
                 for band in 0..3 {
@@ -334,7 +356,7 @@ mod tests {
     use super::*;
     use importer::{Origin, Side};
 
-    fn polygon(vertices: Vec<DVec3>) -> Polygon {
+    pub(crate) fn polygon(vertices: Vec<DVec3>) -> Polygon {
         let n = (vertices[1] - vertices[0])
             .cross(vertices[2] - vertices[0])
             .normalize();

@@ -19,6 +19,7 @@ mod doc;
 mod measure;
 mod peak;
 mod plot;
+mod refinement;
 
 use anyhow::{bail, Context, Result};
 use bake_core::presets::Quality;
@@ -59,6 +60,8 @@ struct Options {
     cube_reference: u32,
     out: PathBuf,
     doc: Option<PathBuf>,
+    /// Only the refinement on/off sweep (its section of the doc).
+    refinement: bool,
 }
 
 fn main() -> Result<()> {
@@ -69,6 +72,16 @@ fn run(options: &Options) -> Result<()> {
     std::fs::create_dir_all(&options.out)
         .with_context(|| format!("creating {}", options.out.display()))?;
     let root = workspace_root();
+    if options.refinement {
+        let rows = refinement::sweep(&root, &options.out, options.quick)?;
+        if let Some(path) = &options.doc {
+            let old = std::fs::read_to_string(path).unwrap_or_default();
+            let text = refinement::splice(&old, &refinement::markdown(&rows));
+            std::fs::write(path, text).with_context(|| format!("{}", path.display()))?;
+            eprintln!("wrote {}", path.display());
+        }
+        return Ok(());
+    }
     let cube = Scene::load("cube", &root.join("fixtures/cube.gltf"))?;
     let mut rows = Vec::new();
     let cube_summary = cube_sweep(&cube, options, &mut rows)?;
@@ -124,6 +137,14 @@ fn run(options: &Options) -> Result<()> {
     )?;
     if let Some(path) = &options.doc {
         let text = doc::markdown(&rows, &cube_summary, cornell_summary.as_ref(), &options.out);
+        // The refinement section is measured by its own run (`--refinement`): kept.
+        let old = std::fs::read_to_string(path).unwrap_or_default();
+        let text = match (old.find(refinement::BEGIN), old.find(refinement::END)) {
+            (Some(a), Some(b)) if b > a => {
+                refinement::splice(&text, &old[a..b + refinement::END.len()])
+            }
+            _ => text,
+        };
         std::fs::write(path, text).with_context(|| format!("{}", path.display()))?;
         eprintln!("wrote {}", path.display());
     }
@@ -138,6 +159,7 @@ fn parse_args() -> Result<Options> {
         cube_reference: 48,
         out: root.join("docs/accuracy"),
         doc: Some(root.join("docs/accuracy.md")),
+        refinement: false,
     };
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
@@ -147,6 +169,7 @@ fn parse_args() -> Result<Options> {
             "--doc" => options.doc = Some(args.next().context("--doc needs a file")?.into()),
             "--no-doc" => options.doc = None,
             "--cube-only" => options.cornell = false,
+            "--refinement" => options.refinement = true,
             "--cube-reference" => {
                 options.cube_reference = args
                     .next()
@@ -155,8 +178,9 @@ fn parse_args() -> Result<Options> {
             }
             "-h" | "--help" => {
                 println!(
-                    "usage: accuracy-report [--quick] [--cube-only] [--cube-reference N] [--out DIR] \
-                     [--doc FILE | --no-doc]\n\
+                    "usage: accuracy-report [--quick] [--cube-only] [--refinement] [--cube-reference N] \
+                     [--out DIR] [--doc FILE | --no-doc]\n\
+                     --refinement: only the refinement on/off sweep and its section of the doc\n\
                      defaults: --cube-reference 48 --out docs/accuracy --doc docs/accuracy.md \
                      (workspace root)"
                 );
@@ -191,6 +215,8 @@ fn setting(group: &str, label: String, subdivision: Subdivision, estimator: Esti
         samples: form_factor::visibility::DEFAULT_SAMPLES,
         solve: Solve::Direct,
         max_error: None,
+        refine: None,
+        refine_levels: None,
     }
 }
 
@@ -627,6 +653,7 @@ mod tests {
             cube_reference: 8,
             out: dir.path().join("img"),
             doc: Some(dir.path().join("accuracy.md")),
+            refinement: false,
         };
         run(&options).unwrap();
         let csv = std::fs::read_to_string(options.out.join("accuracy.csv")).unwrap();

@@ -75,6 +75,11 @@ pub struct Setting {
     /// A preset's target error of b: `auto`'s tolerance is then derived from it and ρ_max as
     /// `--quality` does (`None`: the estimator as given).
     pub max_error: Option<f64>,
+    /// Refinement below the grid with this element budget (`--refine on --max-elements N`,
+    /// the target from `max_error` or the preset's); `None`: `--refine off`, the uniform mesh.
+    pub refine: Option<u64>,
+    /// With `refine`: split elements at most this many times (`None`: the library's limit).
+    pub refine_levels: Option<u8>,
 }
 
 /// A finished bake and what it cost.
@@ -114,6 +119,8 @@ pub fn bake_once(scene: &Scene, setting: &Setting) -> Result<Run> {
     let request = bake_core::Request {
         subdivision: Some(setting.subdivision),
         transport: bake_core::TransportKind::Dense,
+        refine: Some(setting.refine.is_some()),
+        max_elements: setting.refine,
         ..bake_core::Request::default()
     };
     let mut settings = bake_core::Settings::resolve(&request, &scene.polygons)?;
@@ -125,6 +132,9 @@ pub fn bake_once(scene: &Scene, setting: &Setting) -> Result<Run> {
         settings.max_error = e;
     }
     settings.contour = setting.contour;
+    if let Some(levels) = setting.refine_levels {
+        settings.refine_levels = levels;
+    }
     settings.visibility_samples = setting.samples;
     settings.dense_solve = match setting.solve {
         Solve::Direct => bake_core::Solve::Direct,
@@ -620,6 +630,7 @@ mod tests {
                 subdivision: Some(Subdivision::Count(28)),
                 transport,
                 link_tolerance,
+                refine: Some(false),
                 ..bake_core::Request::default()
             };
             let settings =
@@ -697,12 +708,14 @@ mod tests {
             ff_estimator: Some(bake_core::EstimatorKind::Contour),
             visibility_samples: Some(961),
             transport: bake_core::TransportKind::Dense,
+            refine: Some(false),
             ..bake_core::Request::default()
         });
         let reference = Field::new(&fine.mesh, &fine.solution.b);
         for d in [8.0, 12.0] {
             let bake = run(bake_core::Request {
                 subdivision: Some(size(d)),
+                refine: Some(false),
                 ..bake_core::Request::default()
             });
             let coarse = Field::new(&bake.mesh, &bake.solution.b);
@@ -727,6 +740,7 @@ mod tests {
         let reference = Field::new(&ref_mesh, &ref_b);
         let request = bake_core::Request {
             subdivision: Some(Subdivision::Count(7)),
+            refine: Some(false),
             ..bake_core::Request::default()
         };
         let settings = bake_core::Settings::resolve(&request, &cube.polygons).expect("settings");

@@ -1,0 +1,367 @@
+//! Refinement where the light changes: the paper's "smarter subdivision algorithm to obtain
+//! finer meshes in regions of high intensity gradients" (Goral et al. 1984, §6).
+//!
+//! After a solve, an element is marked when
+//! - a light's shadow edge crosses it ([`Bake::partly_lit`]: a sun's exact lit share, or a
+//!   point or spot light's shadow rays, strictly between 0 and 1) and the jump in `b` to its
+//!   neighbours exceeds the target, or
+//! - its discretisation estimate ([`crate::error`]: `b` against the plane through its
+//!   neighbours) exceeds the target, with neighbours taken on its own side of every shadow
+//!   edge only (a step is not a gradient a finer mesh would follow),
+//!
+//! where the target is `--max-error` times the area-weighted mean of `b`'s brightest band.
+//! Marked elements are split (quads 2 × 2, triangles into 4, [`mesher::ElementMesh::refine`]),
+//! worst first within the element budget (`--max-elements`), at most [`MAX_LEVELS`] times
+//! below the grid, and the scene is solved again on the new mesh (the dense transport takes
+//! any element mesh; the hierarchical one, whose trees are the grids, is not refined). This
+//! repeats until nothing is marked, the budget is reached (a warning names where), or
+//! [`MAX_PASSES`] solves ran. Where the light is smooth nothing is marked. Finally each vertex
+//! gets one copy per side of every shadow edge ([`mesher::ElementMesh::split_at_discontinuities`]),
+//! so smoothing never blends lit and shadowed elements.
+
+use crate::{error, run_mesh, Bake, BakeError, Progress, Settings, TransportKind};
+use importer::Scene;
+use std::time::Instant;
+
+/// Elements are split at most this many times below the mesher's grid (to 1/32 of its size).
+pub const MAX_LEVELS: u8 = 5;
+
+/// The most solves a refining bake runs (the first on the grid included).
+pub const MAX_PASSES: u32 = 8;
+
+/// What refinement did, for the report.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Refinement {
+    /// Whether refinement was on and could run (dense transport).
+    pub enabled: bool,
+    /// Solves after the first, on refined meshes.
+    pub passes: u32,
+    pub elements_before: usize,
+    pub elements_after: usize,
+    /// Elements split, over all passes.
+    pub split: usize,
+    /// Elements still above the target at the end (at the finest level, or past the budget);
+    /// shadow-edge elements at the finest level are not counted (a step stays a step).
+    pub above_target: usize,
+    /// Vertices given a copy per side of a shadow edge, and the edges between them.
+    pub discontinuity_vertices: usize,
+    pub discontinuity_edges: usize,
+    /// Why it stopped.
+    pub stopped: String,
+}
+
+/// The elements refinement wants split this pass.
+struct Marks {
+    /// Per element: its error over the target (> 1: wants splitting).
+    priority: Vec<f64>,
+    /// Elements above the target that may still be split.
+    wanted: Vec<usize>,
+    /// Elements above the target at the finest level (shadow-edge elements excluded).
+    at_finest: usize,
+}
+
+/// The target of one bake: `--max-error` × the area-weighted mean of the brightest band of b.
+fn target(bake: &Bake, settings: &Settings) -> f64 {
+    let (mut sum, mut area) = (0.0, 0.0);
+    for (e, b) in bake.mesh.elements.iter().zip(&bake.solution.b) {
+        sum += e.area * b[0].max(b[1]).max(b[2]);
+        area += e.area;
+    }
+    if area > 0.0 {
+        settings.max_error * sum / area
+    } else {
+        0.0
+    }
+}
+
+fn marks(bake: &Bake, settings: &Settings) -> Marks {
+    use rayon::prelude::*;
+    let mesh = &bake.mesh;
+    let b = &bake.solution.b;
+    let n = mesh.elements.len();
+    let target = target(bake, settings);
+    let class = &bake.shadow_class;
+    let same_side = error::neighbours_where(mesh, |i, j| class.get(i) == class.get(j));
+    let all = error::neighbours(mesh);
+    let brightest = |v: [f64; 3]| v[0].max(v[1]).max(v[2]);
+    let priority: Vec<f64> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            if target.is_nan() || target <= 0.0 {
+                return 0.0;
+            }
+            let err = if bake.partly_lit.get(i) == Some(&true) {
+                // The step it straddles.
+                all[i]
+                    .iter()
+                    .map(|&j| brightest([0, 1, 2].map(|c| (b[j as usize][c] - b[i][c]).abs())))
+                    .fold(0.0, f64::max)
+            } else {
+                brightest(error::discretisation(mesh, b, i, &same_side[i]))
+            };
+            err / target
+        })
+        .collect();
+    let mut wanted = Vec::new();
+    let mut at_finest = 0;
+    for (i, &p) in priority.iter().enumerate() {
+        if p.is_nan() || p <= 1.0 {
+            continue;
+        }
+        if mesh.level(i) < settings.refine_levels {
+            wanted.push(i);
+        } else if bake.partly_lit.get(i) != Some(&true) {
+            at_finest += 1;
+        }
+    }
+    // Worst first; ties in element order (deterministic).
+    wanted.sort_by(|&a, &b| priority[b].total_cmp(&priority[a]).then(a.cmp(&b)));
+    Marks {
+        priority,
+        wanted,
+        at_finest,
+    }
+}
+
+/// Where the elements still above the target are: the polygon with most of them and its
+/// material, for a warning.
+fn where_above(scene: &Scene, bake: &Bake, elements: &[usize]) -> String {
+    let mut count = std::collections::BTreeMap::<u32, usize>::new();
+    for &i in elements {
+        *count.entry(bake.mesh.elements[i].polygon).or_default() += 1;
+    }
+    let Some((&polygon, &k)) = count.iter().max_by(|a, b| a.1.cmp(b.1).then(b.0.cmp(a.0))) else {
+        return String::new();
+    };
+    let material = scene
+        .polygons
+        .get(polygon as usize)
+        .and_then(|p| scene.materials.get(p.material).map(|m| (p.material, m)));
+    let name = match material {
+        Some((_, m)) if m.name.is_some() => {
+            format!("material '{}'", m.name.as_deref().unwrap_or(""))
+        }
+        Some((k, _)) => format!("material {k}"),
+        None => "no material".into(),
+    };
+    format!(
+        "{} of them on polygon {polygon} ({name}){}",
+        k,
+        if count.len() > 1 {
+            format!(", the rest on {} other polygons", count.len() - 1)
+        } else {
+            String::new()
+        }
+    )
+}
+
+/// Refines `first` (a bake on the grids) as the module docs say; returns it unchanged when
+/// refinement is off or the transport is hierarchical.
+pub fn refine(
+    scene: &Scene,
+    settings: &Settings,
+    progress: &dyn Progress,
+    first: Bake,
+) -> Result<Bake, BakeError> {
+    let mut bake = first;
+    let before = bake.mesh.elements.len();
+    bake.refinement.elements_before = before;
+    bake.refinement.elements_after = before;
+    if !settings.refine {
+        bake.refinement.stopped = "--refine off".into();
+        return Ok(bake);
+    }
+    if bake.transport.kind == TransportKind::Hierarchical {
+        bake.refinement.stopped = "not refined: the hierarchical transport's trees are built \
+                                   over the element grids"
+            .into();
+        if settings.refine_requested {
+            bake.warnings.push(format!(
+                "--refine on: {} ({before} elements; refinement runs on the dense transport, \
+                 up to --max-elements)",
+                bake.refinement.stopped
+            ));
+        }
+        return Ok(bake);
+    }
+    let mut timings: Vec<(&'static str, f64)> = bake.timings.clone();
+    let add_timings = |timings: &mut Vec<(&'static str, f64)>, more: &[(&'static str, f64)]| {
+        for &(name, t) in more {
+            match timings.iter_mut().find(|(n, _)| *n == name) {
+                Some(slot) => slot.1 += t,
+                None => timings.push((name, t)),
+            }
+        }
+    };
+    let mut passes = 0;
+    let mut split = 0;
+    let above;
+    let stopped;
+    loop {
+        let lap = Instant::now();
+        let m = marks(&bake, settings);
+        let n = bake.mesh.elements.len();
+        if m.wanted.is_empty() {
+            above = m.at_finest;
+            stopped = if m.at_finest > 0 {
+                let at: Vec<usize> = (0..n)
+                    .filter(|&i| {
+                        m.priority[i] > 1.0
+                            && bake.mesh.level(i) >= settings.refine_levels
+                            && bake.partly_lit.get(i) != Some(&true)
+                    })
+                    .collect();
+                bake.warnings.push(format!(
+                    "refinement reached its finest elements (1/{} of the grid's) with {} \
+                     elements still above --max-error {:e}: {}",
+                    1u64 << settings.refine_levels.min(63),
+                    m.at_finest,
+                    settings.max_error,
+                    where_above(scene, &bake, &at)
+                ));
+                "finest level reached".to_string()
+            } else {
+                "the estimate meets the target".to_string()
+            };
+            break;
+        }
+        let room = (settings.max_elements.saturating_sub(n as u64) / 3) as usize;
+        if room == 0 || passes + 1 >= MAX_PASSES {
+            above = m.wanted.len() + m.at_finest;
+            let why = if room == 0 {
+                format!(
+                    "the element budget --max-elements {}",
+                    settings.max_elements
+                )
+            } else {
+                format!("{MAX_PASSES} solves")
+            };
+            bake.warnings.push(format!(
+                "refinement stopped at {why} ({n} elements) with {} elements still above \
+                 --max-error {:e}: {}",
+                m.wanted.len(),
+                settings.max_error,
+                where_above(scene, &bake, &m.wanted)
+            ));
+            stopped = format!("stopped at {why}");
+            break;
+        }
+        // Where the budget cuts, elements tied with the first one left out (within 1e-9:
+        // mirror images of a symmetric scene) are left out too, so that refinement keeps
+        // symmetries.
+        let mut chosen = m.wanted.len().min(room);
+        if chosen < m.wanted.len() {
+            let cut = m.priority[m.wanted[chosen]] * (1.0 + 1e-9);
+            chosen = m.wanted[..chosen]
+                .iter()
+                .take_while(|&&i| m.priority[i] > cut)
+                .count();
+        }
+        if chosen == 0 {
+            above = m.wanted.len() + m.at_finest;
+            bake.warnings.push(format!(
+                "refinement stopped at the element budget --max-elements {} ({n} elements): \
+                 splitting any of the {} elements above --max-error {:e} (tied, e.g. mirror \
+                 images) would pass it: {}",
+                settings.max_elements,
+                m.wanted.len(),
+                settings.max_error,
+                where_above(scene, &bake, &m.wanted)
+            ));
+            stopped = format!(
+                "stopped at the element budget --max-elements {}",
+                settings.max_elements
+            );
+            break;
+        }
+        let mut marked = vec![false; n];
+        for &i in m.wanted.iter().take(chosen) {
+            marked[i] = true;
+        }
+        let refined = bake.mesh.refine(&marked)?.mesh;
+        let spent = lap.elapsed().as_secs_f64();
+        let mut next = run_mesh(scene, settings, progress, Some(refined))?;
+        add_timings(&mut timings, &[("refine", spent)]);
+        add_timings(&mut timings, &next.timings);
+        for w in std::mem::take(&mut bake.warnings) {
+            if !next.warnings.contains(&w) {
+                next.warnings.insert(0, w);
+            }
+        }
+        bake = next;
+        passes += 1;
+        split += chosen;
+    }
+    let lap = Instant::now();
+    let mesh = bake.mesh.split_at_discontinuities(&bake.shadow_class);
+    let discontinuity_vertices = mesh.vertices.len() - bake.mesh.vertices.len();
+    let discontinuity_edges = mesh.discontinuities.len();
+    bake.mesh = mesh;
+    add_timings(
+        &mut timings,
+        &[("discontinuities", lap.elapsed().as_secs_f64())],
+    );
+    bake.timings = timings;
+    bake.refinement = Refinement {
+        enabled: true,
+        passes,
+        elements_before: before,
+        elements_after: bake.mesh.elements.len(),
+        split,
+        above_target: above,
+        discontinuity_vertices,
+        discontinuity_edges,
+        stopped,
+    };
+    Ok(bake)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Request;
+
+    /// Splitting every element of the cube's 4 × 4 grids once gives the 8 × 8 grids' elements
+    /// (midpoints are grid points): the bake on the refined mesh must agree with the bake on
+    /// the 8 × 8 grid element by element (the transport takes any mesh; only the rounding of
+    /// the vertex positions differs).
+    #[test]
+    fn a_mesh_refined_everywhere_bakes_like_the_finer_grid() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/cube.gltf");
+        let scene = importer::load(std::path::Path::new(path)).expect("the cube");
+        let settings = |n| {
+            let request = Request {
+                subdivision: Some(mesher::Subdivision::Count(n)),
+                refine: Some(false),
+                ..Request::default()
+            };
+            Settings::resolve(&request, &scene.polygons).expect("settings")
+        };
+        let coarse = mesher::mesh(&scene.polygons, mesher::Subdivision::Count(4)).expect("mesh");
+        let refined = coarse
+            .refine(&vec![true; coarse.elements.len()])
+            .expect("refine")
+            .mesh;
+        let on_refined =
+            run_mesh(&scene, &settings(8), &crate::Silent, Some(refined)).expect("bake");
+        let fine = run_mesh(&scene, &settings(8), &crate::Silent, None).expect("bake");
+        assert_eq!(on_refined.mesh.elements.len(), fine.mesh.elements.len());
+        let key = |c: glam::DVec3| (c * 1e6).round().to_array().map(|x| x as i64);
+        let at: std::collections::HashMap<_, _> = fine
+            .mesh
+            .elements
+            .iter()
+            .zip(&fine.solution.b)
+            .map(|(e, b)| (key(e.centroid), *b))
+            .collect();
+        for (e, b) in on_refined.mesh.elements.iter().zip(&on_refined.solution.b) {
+            let want = at.get(&key(e.centroid)).expect("the same element");
+            for c in 0..3 {
+                assert!(
+                    (b[c] - want[c]).abs() <= 1e-9 * want[c].abs().max(1e-3),
+                    "{b:?} {want:?}"
+                );
+            }
+        }
+    }
+}
