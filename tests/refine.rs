@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{aim, bake_json_default, lit_scene};
+use common::{aim, bake_default_in, bake_json_default, fixture, lit_scene};
 use gltf::Semantic;
 use serde_json::json;
 use std::collections::HashMap;
@@ -237,6 +237,8 @@ fn the_lightmap_samples_the_refined_solution() {
     let options = lightmap::Options {
         texel_size: lightmap::default_texel_size(&scene.polygons),
         max_size: lightmap::DEFAULT_MAX_SIZE,
+        shading: lightmap::Shading::Smooth,
+        max_atlases: lightmap::DEFAULT_MAX_ATLASES,
     };
     let map = lightmap::build(&scene.polygons, &bake.mesh, h, &options).expect("lightmap");
     let floor = scene
@@ -333,6 +335,31 @@ fn the_budget_stops_refinement_and_says_where() {
         .find(|w| w.contains("refinement stopped"))
         .unwrap_or_else(|| panic!("no warning: {:?}", report.warnings));
     assert!(warning.contains("on polygon 0 (material 0)"), "{warning}");
+}
+
+/// With the preset's defaults (no target asked for) a budget that stops refinement is said in
+/// the report only; the same bake with `--max-elements` given warns (above).
+#[test]
+fn the_default_budget_stops_quietly() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (out, report) = (dir.path().join("cube.gltf"), dir.path().join("cube.json"));
+    let run = bake_default_in(
+        None,
+        [
+            fixture("cube.gltf").as_os_str(),
+            out.as_os_str(),
+            "--target".as_ref(),
+            "vertex".as_ref(),
+            "--report".as_ref(),
+            report.as_os_str(),
+        ],
+    );
+    assert_eq!(run.code, Some(0), "{}", run.stderr);
+    assert!(!run.stderr.contains("refinement"), "{}", run.stderr);
+    let text = std::fs::read_to_string(&report).expect("report");
+    let json: serde_json::Value = serde_json::from_str(&text).expect("json");
+    let stopped = json["refinement"]["stopped"].as_str().unwrap_or_default();
+    assert!(stopped.contains("--max-elements"), "{}", json["refinement"]);
 }
 
 /// A refined bake gives the same bytes whatever the thread count.

@@ -14,7 +14,8 @@
 //! worst first within the element budget (`--max-elements`), at most [`MAX_LEVELS`] times
 //! below the grid, and the scene is solved again on the new mesh (the dense transport takes
 //! any element mesh; the hierarchical one, whose trees are the grids, is not refined). This
-//! repeats until nothing is marked, the budget is reached (a warning names where), or
+//! repeats until nothing is marked, the budget is reached (a warning names where, when the user
+//! asked for a target: [`crate::Settings::warn_refinement`]), or
 //! [`MAX_PASSES`] solves ran. Where the light is smooth nothing is marked. Finally each vertex
 //! gets one copy per side of every shadow edge ([`mesher::ElementMesh::split_at_discontinuities`]),
 //! so smoothing never blends lit and shadowed elements.
@@ -211,14 +212,16 @@ pub fn refine(
                             && bake.partly_lit.get(i) != Some(&true)
                     })
                     .collect();
-                bake.warnings.push(format!(
-                    "refinement reached its finest elements (1/{} of the grid's) with {} \
-                     elements still above --max-error {:e}: {}",
-                    1u64 << settings.refine_levels.min(63),
-                    m.at_finest,
-                    settings.max_error,
-                    where_above(scene, &bake, &at)
-                ));
+                if settings.warn_refinement {
+                    bake.warnings.push(format!(
+                        "refinement reached its finest elements (1/{} of the grid's) with {} \
+                         elements still above --max-error {:e}: {}",
+                        1u64 << settings.refine_levels.min(63),
+                        m.at_finest,
+                        settings.max_error,
+                        where_above(scene, &bake, &at)
+                    ));
+                }
                 "finest level reached".to_string()
             } else {
                 "the estimate meets the target".to_string()
@@ -236,13 +239,15 @@ pub fn refine(
             } else {
                 format!("{MAX_PASSES} solves")
             };
-            bake.warnings.push(format!(
-                "refinement stopped at {why} ({n} elements) with {} elements still above \
-                 --max-error {:e}: {}",
-                m.wanted.len(),
-                settings.max_error,
-                where_above(scene, &bake, &m.wanted)
-            ));
+            if settings.warn_refinement {
+                bake.warnings.push(format!(
+                    "refinement stopped at {why} ({n} elements) with {} elements still above \
+                     --max-error {:e}: {}",
+                    m.wanted.len(),
+                    settings.max_error,
+                    where_above(scene, &bake, &m.wanted)
+                ));
+            }
             stopped = format!("stopped at {why}");
             break;
         }
@@ -259,15 +264,17 @@ pub fn refine(
         }
         if chosen == 0 {
             above = m.wanted.len() + m.at_finest;
-            bake.warnings.push(format!(
-                "refinement stopped at the element budget --max-elements {} ({n} elements): \
-                 splitting any of the {} elements above --max-error {:e} (tied, e.g. mirror \
-                 images) would pass it: {}",
-                settings.max_elements,
-                m.wanted.len(),
-                settings.max_error,
-                where_above(scene, &bake, &m.wanted)
-            ));
+            if settings.warn_refinement {
+                bake.warnings.push(format!(
+                    "refinement stopped at the element budget --max-elements {} ({n} elements): \
+                     splitting any of the {} elements above --max-error {:e} (tied, e.g. mirror \
+                     images) would pass it: {}",
+                    settings.max_elements,
+                    m.wanted.len(),
+                    settings.max_error,
+                    where_above(scene, &bake, &m.wanted)
+                ));
+            }
             stopped = format!(
                 "stopped at the element budget --max-elements {}",
                 settings.max_elements

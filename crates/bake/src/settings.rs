@@ -178,6 +178,10 @@ pub struct Settings {
     pub refine: bool,
     /// Whether `--refine on` was given (then a bake that cannot refine says why).
     pub refine_requested: bool,
+    /// Whether the user asked for a target (`--max-error`, `--max-elements` or `--refine on`):
+    /// then refinement that stops short of it warns. Otherwise (the preset's defaults) the
+    /// report's `refinement` says where it stopped and the bake stays quiet.
+    pub warn_refinement: bool,
     /// Refinement stops before the mesh passes this many elements.
     pub max_elements: u64,
     /// Elements are split at most this many times below the grid
@@ -295,6 +299,9 @@ impl Settings {
                 && !request.save_links
                 && request.load_links.is_none(),
             refine_requested: request.refine == Some(true),
+            warn_refinement: request.refine == Some(true)
+                || request.max_error.is_some()
+                || request.max_elements.is_some(),
             max_elements: request.max_elements.unwrap_or(crate::DEFAULT_MAX_ELEMENTS),
             refine_levels: crate::refine::MAX_LEVELS,
         })

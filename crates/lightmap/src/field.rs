@@ -263,6 +263,7 @@ impl Field {
             .collect();
         let inside = |k: u32| patch.vertices.contains(&k);
         let mut tris = Vec::new();
+        let mut tri_elements = Vec::new();
         let mut scratch = Vec::new();
         for i in patch.elements.clone() {
             if i as usize >= mesh.elements.len() {
@@ -276,6 +277,7 @@ impl Field {
                     ));
                 }
                 tris.push((*t, t.map(|k| points[(k - base) as usize])));
+                tri_elements.push(i - patch.elements.start);
             }
         }
         if tris.is_empty() {
@@ -295,7 +297,13 @@ impl Field {
             })
             .map(|k| base + k as u32)
             .collect();
-        field.grid = Grid::Elements(Box::new(Locator::new(base, points, tris, boundary)));
+        field.grid = Grid::Elements(Box::new(Locator::new(
+            base,
+            points,
+            tris,
+            tri_elements,
+            boundary,
+        )));
         Ok(field)
     }
 }
@@ -309,6 +317,8 @@ pub(crate) struct Locator {
     points: Vec<DVec2>,
     /// Mesh vertex ids and plane positions of each triangle.
     tris: Vec<([u32; 3], [DVec2; 3])>,
+    /// Each triangle's element, counted from the polygon's first.
+    tri_elements: Vec<u32>,
     lo: DVec2,
     cell: DVec2,
     cells: [usize; 2],
@@ -323,6 +333,7 @@ impl Locator {
         base: u32,
         points: Vec<DVec2>,
         tris: Vec<([u32; 3], [DVec2; 3])>,
+        tri_elements: Vec<u32>,
         boundary: Vec<u32>,
     ) -> Locator {
         let mut lo = DVec2::splat(f64::INFINITY);
@@ -357,6 +368,7 @@ impl Locator {
             base,
             points,
             tris,
+            tri_elements,
             lo,
             cell,
             cells,
@@ -376,6 +388,22 @@ impl Locator {
     /// The field at plane point `q`: linear over the triangle containing it (the one it is
     /// least outside of, in barycentric terms, for points outside the polygon).
     fn value_at(&self, q: DVec2, values: &[[f64; 3]]) -> [f64; 3] {
+        let Some((k, w)) = self.locate(q) else {
+            return [0.0; 3];
+        };
+        let ids = self.tris[k].0;
+        std::array::from_fn(|band| (0..3).map(|j| w[j] * values[ids[j] as usize][band]).sum())
+    }
+
+    /// The element (counted from the polygon's first) whose triangle holds `q`, or the
+    /// nearest one's outside the polygon.
+    fn element_at(&self, q: DVec2) -> u32 {
+        self.locate(q).map_or(0, |(k, _)| self.tri_elements[k])
+    }
+
+    /// The triangle holding `q` (the one it is least outside of, outside the polygon) and
+    /// `q`'s barycentric weights in it.
+    fn locate(&self, q: DVec2) -> Option<(usize, [f64; 3])> {
         let c = (q - self.lo) / self.cell;
         let in_grid = c.x >= 0.0
             && c.y >= 0.0
@@ -400,11 +428,7 @@ impl Locator {
         if found.is_none() {
             found = best(&mut (0..self.tris.len()));
         }
-        let Some((_, k, w)) = found else {
-            return [0.0; 3];
-        };
-        let ids = self.tris[k].0;
-        std::array::from_fn(|band| (0..3).map(|j| w[j] * values[ids[j] as usize][band]).sum())
+        found.map(|(_, k, w)| (k, w))
     }
 }
 
@@ -540,6 +564,8 @@ impl Field {
     /// "up" triangle of cell i, then its "down" neighbour (row k starts at n² − (n − k)²).
     pub(crate) fn element_at_params(&self, p: DVec2) -> u32 {
         match self.grid {
+            // Refined: the parameters are plane coordinates.
+            Grid::Elements(ref locator) => locator.element_at(p),
             Grid::Quad { nu, nv, .. } => {
                 let i = clamp_cell(p.x * f64::from(nu), nu);
                 let j = clamp_cell(p.y * f64::from(nv), nv);
