@@ -296,6 +296,36 @@ fn the_lightmap_samples_the_refined_solution() {
     eprintln!("lightmap: {share:.5} of {total} field points, {texel_share:.5} of {texels} texel samples within 2% (texel {texel})");
     assert!(share >= 0.998, "{share}");
     assert!(texel_share >= 0.998, "{texel_share}");
+
+    // Flat shading on the refined mesh: at the centroid of every floor element at least four
+    // texels across, the texel (bilinear between texels of the same element) is its own H.
+    let flat = lightmap::build(
+        &scene.polygons,
+        &bake.mesh,
+        h,
+        &lightmap::Options {
+            shading: lightmap::Shading::Flat,
+            ..options
+        },
+    )
+    .expect("flat lightmap");
+    let (mut checked, mut worst) = (0, 0.0f64);
+    for (i, el) in bake.mesh.elements.iter().enumerate() {
+        if el.polygon as usize != floor || el.area.sqrt() < 4.0 * texel {
+            continue;
+        }
+        let d = el.centroid - corners[0];
+        let (s, t) = (
+            d.dot(e1) / e1.length_squared(),
+            d.dot(e2) / e2.length_squared(),
+        );
+        let at = uv[0] + (uv[1] - uv[0]) * s + (uv[3] - uv[0]) * t;
+        let v = flat.sample([at.x, at.y])[0];
+        worst = worst.max((v - h[i][0]).abs() / lit);
+        checked += 1;
+    }
+    assert!(checked > 100, "{checked}");
+    assert!(worst < 1e-6, "worst {worst} over {checked} elements");
 }
 
 /// Where the light is smooth nothing is refined: the same floor under the sun without the
