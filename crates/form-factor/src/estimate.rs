@@ -560,11 +560,9 @@ pub(crate) fn side_fit(from: &Poly, n: DVec3, to: &Poly, fit: bool) -> SideFit {
 /// for screening pairs, where four digits are plenty and the libm atan2 was a fifth of a
 /// hierarchical bake's time.
 fn rough_point_to_polygon(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
-    let m = polygon.len();
-    let mut r = [DVec3::ZERO; 8];
-    if m > r.len() {
-        return slow_rough_point_to_polygon(x, n, polygon);
-    }
+    // A `Poly` holds at most CAPACITY corners.
+    let m = polygon.len().min(CAPACITY);
+    let mut r = [DVec3::ZERO; CAPACITY];
     for (rk, p) in r.iter_mut().zip(polygon) {
         *rk = *p - x;
     }
@@ -585,20 +583,6 @@ fn rough_point_to_polygon(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
                 let len = cc.sqrt();
                 sum += fast_atan2(len, d) * n.dot(c) / len;
             }
-        }
-    }
-    sum.abs() / (2.0 * PI)
-}
-
-/// The same for polygons of more than 8 corners (never made by clipping a quad).
-fn slow_rough_point_to_polygon(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
-    let mut sum = 0.0;
-    for k in 0..polygon.len() {
-        let (r0, r1) = (polygon[k] - x, polygon[(k + 1) % polygon.len()] - x);
-        let c = r0.cross(r1);
-        let len = c.length();
-        if len > 0.0 {
-            sum += fast_atan2(len, r0.dot(r1)) * n.dot(c) / len;
         }
     }
     sum.abs() / (2.0 * PI)
@@ -657,8 +641,7 @@ mod fast_atan_tests {
                 ] {
                     let exact = super::point_to_polygon(x, n, &square);
                     let rough = super::rough_point_to_polygon(x, n, &square);
-                    let slow = super::slow_rough_point_to_polygon(x, n, &square);
-                    worst = worst.max((rough - exact).abs()).max((slow - exact).abs());
+                    worst = worst.max((rough - exact).abs());
                 }
             }
         }

@@ -832,8 +832,9 @@ impl Linker<'_> {
         }
     }
 
-    /// The pair's value, error factor and visibility; `None` when the nodes cannot exchange
-    /// light or every shadow ray is blocked and the pair is small enough to drop.
+    /// The pair's rough value, error factor and visibility from its `screen` (the pair can
+    /// exchange light: [`Linker::link`] checked); occludable pairs that only visibility would
+    /// refine get their shadow rays here and become blocked links when every ray is stopped.
     fn evaluate(&self, p: u32, q: u32, parent_occludable: bool, screen: &PairScreen) -> Link {
         let (np, nq) = (&self.nodes[p as usize], &self.nodes[q as usize]);
         let c = self.counters;
