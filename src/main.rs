@@ -180,11 +180,13 @@ pub struct Cli {
     /// estimate exceeds --max-error (relative to the mean radiosity) or that a light's shadow
     /// edge crosses, and solve again, until the estimate meets it, --max-elements is reached
     /// (a warning says where) or nothing changes; vertex values are not smoothed across shadow
-    /// edges. Runs on the dense transport (scenes up to --max-elements); `off` keeps the
-    /// uniform mesh.
+    /// edges. On by default on the dense transport; on the hierarchical transport (each solve
+    /// links the scene again, at most 3 solves) only when asked (`on`, or --max-elements);
+    /// `off` keeps the uniform mesh.
     #[arg(long, value_enum, value_name = "on|off")]
     pub refine: Option<OnOff>,
-    /// The element budget of refinement [default: 2000, the dense crossover].
+    /// The element budget of refinement [default: the larger of 2000 (the dense crossover)
+    /// and the grid's elements plus a quarter].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub max_elements: Option<u64>,
 

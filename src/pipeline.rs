@@ -394,6 +394,7 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             passes: r.passes,
             elements_before: r.elements_before,
             elements_after: r.elements_after,
+            budget: r.budget,
             split: r.split,
             above_target: r.above_target,
             discontinuity_vertices: r.discontinuity_vertices,

@@ -188,9 +188,14 @@ pub const MAX_BOUNCES: u32 = 10_000;
 /// Scenes up to this many elements get the dense transport under `--transport auto`.
 pub const DENSE_CROSSOVER: usize = 2_000;
 
-/// The default `--max-elements`: refinement runs on the dense transport, so its budget is the
-/// dense crossover.
+/// The least default `--max-elements` (the dense crossover: a small scene may refine up to
+/// what the dense transport takes).
 pub const DEFAULT_MAX_ELEMENTS: u64 = DENSE_CROSSOVER as u64;
+
+/// By default refinement may add a quarter of the grid's elements to a scene larger than
+/// [`DEFAULT_MAX_ELEMENTS`] × 4/5 (the hierarchical transport's walkthroughs): refined
+/// elements are a small share of a large scene, so its time and memory grow by about as much.
+pub const DEFAULT_GROWTH_DIVISOR: u64 = 4;
 
 /// Bakes `scene` with `settings`: mesh, visibility, transport, solve (and `H = F b` if asked),
 /// then, with [`Settings::refine`], splits elements where the light changes and solves again
@@ -227,20 +232,13 @@ pub(crate) fn run_mesh(
         None => mesher::element_count(&scene.polygons, settings.subdivision)?,
     };
     let rho_bound = scene_rho_bound(scene);
-    let mut transport = match &given {
-        // The hierarchical transport builds its trees over the mesher's grids.
-        Some(mesh) if !mesh.is_grid() => TransportChoice {
-            kind: TransportKind::Dense,
-            reason: format!(
-                "{planned} elements of a refined mesh: the dense transport takes any element                  mesh (the hierarchical one's trees are built over the element grids)"
-            ),
-        },
-        _ => choose_transport(
-            settings,
-            usize::try_from(planned).unwrap_or(usize::MAX),
-            rho_bound,
-        ),
-    };
+    // A refined mesh is chosen for like the grids: both transports take it (the hierarchical
+    // one's trees continue below the grid elements into their quarters).
+    let mut transport = choose_transport(
+        settings,
+        usize::try_from(planned).unwrap_or(usize::MAX),
+        rho_bound,
+    );
     let amplification = accuracy::condition_bound(rho_bound, 0.0);
     if transport.kind == TransportKind::Hierarchical && amplification >= BRIGHT_AMPLIFICATION {
         warnings.push(format!(

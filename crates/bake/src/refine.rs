@@ -12,8 +12,10 @@
 //! where the target is `--max-error` times the area-weighted mean of `b`'s brightest band.
 //! Marked elements are split (quads 2 × 2, triangles into 4, [`mesher::ElementMesh::refine`]),
 //! worst first within the element budget (`--max-elements`), at most [`MAX_LEVELS`] times
-//! below the grid, and the scene is solved again on the new mesh (the dense transport takes
-//! any element mesh; the hierarchical one, whose trees are the grids, is not refined). This
+//! below the grid, and the scene is solved again on the new mesh (either transport: the
+//! hierarchical one's trees continue below the grid elements into their quarters; it refines
+//! only when asked, `--refine on` or `--max-elements`, and at most [`MAX_HIERARCHICAL_PASSES`]
+//! solves, since each links the whole scene again). This
 //! repeats until nothing is marked, the budget is reached (a warning names where, when the user
 //! asked for a target: [`crate::Settings::warn_refinement`]), or
 //! [`MAX_PASSES`] solves ran. Where the light is smooth nothing is marked. Finally each vertex
@@ -30,6 +32,10 @@ pub const MAX_LEVELS: u8 = 5;
 /// The most solves a refining bake runs (the first on the grid included).
 pub const MAX_PASSES: u32 = 8;
 
+/// The most solves of a refining bake on the hierarchical transport, each of which links the
+/// whole scene again (the grid's included).
+pub const MAX_HIERARCHICAL_PASSES: u32 = 3;
+
 /// What refinement did, for the report.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Refinement {
@@ -39,6 +45,8 @@ pub struct Refinement {
     pub passes: u32,
     pub elements_before: usize,
     pub elements_after: usize,
+    /// The element budget ([`crate::Settings::element_budget`]).
+    pub budget: u64,
     /// Elements split, over all passes.
     pub split: usize,
     /// Elements still above the target at the end (at the finest level, or past the budget);
@@ -157,7 +165,7 @@ fn where_above(scene: &Scene, bake: &Bake, elements: &[usize]) -> String {
 }
 
 /// Refines `first` (a bake on the grids) as the module docs say; returns it unchanged when
-/// refinement is off or the transport is hierarchical.
+/// refinement is off or links are saved or loaded.
 pub fn refine(
     scene: &Scene,
     settings: &Settings,
@@ -172,19 +180,29 @@ pub fn refine(
         bake.refinement.stopped = "--refine off".into();
         return Ok(bake);
     }
-    if bake.transport.kind == TransportKind::Hierarchical {
-        bake.refinement.stopped = "not refined: the hierarchical transport's trees are built \
-                                   over the element grids"
-            .into();
-        if settings.refine_requested {
-            bake.warnings.push(format!(
-                "--refine on: {} ({before} elements; refinement runs on the dense transport, \
-                 up to --max-elements)",
-                bake.refinement.stopped
-            ));
-        }
+    if settings.save_links || settings.load_links.is_some() {
+        // Saved links are keyed by the grids (and loaded ones were made over them).
+        bake.refinement.stopped =
+            "not refined: --save-links and --load-links keep the grids".into();
         return Ok(bake);
     }
+    let hierarchical = bake.transport.kind == TransportKind::Hierarchical;
+    if hierarchical && !settings.refine_requested && settings.max_elements.is_none() {
+        // Each solve of a refining hierarchical bake links the whole scene again: a
+        // walkthrough's default bake stays one solve, and `--refine on` asks for more.
+        bake.refinement.stopped = "not refined by default on the hierarchical transport (each \
+                                   refinement solve links the scene again): --refine on or \
+                                   --max-elements asks for it"
+            .into();
+        return Ok(bake);
+    }
+    // Every solve of a hierarchical bake links the whole scene again: fewer of them.
+    let max_passes = if hierarchical {
+        MAX_HIERARCHICAL_PASSES
+    } else {
+        MAX_PASSES
+    };
+    let budget = settings.element_budget(before);
     let mut timings: Vec<(&'static str, f64)> = bake.timings.clone();
     let add_timings = |timings: &mut Vec<(&'static str, f64)>, more: &[(&'static str, f64)]| {
         for &(name, t) in more {
@@ -228,16 +246,13 @@ pub fn refine(
             };
             break;
         }
-        let room = (settings.max_elements.saturating_sub(n as u64) / 3) as usize;
-        if room == 0 || passes + 1 >= MAX_PASSES {
+        let room = (budget.saturating_sub(n as u64) / 3) as usize;
+        if room == 0 || passes + 1 >= max_passes {
             above = m.wanted.len() + m.at_finest;
             let why = if room == 0 {
-                format!(
-                    "the element budget --max-elements {}",
-                    settings.max_elements
-                )
+                format!("the element budget --max-elements {budget}")
             } else {
-                format!("{MAX_PASSES} solves")
+                format!("{max_passes} solves")
             };
             if settings.warn_refinement {
                 bake.warnings.push(format!(
@@ -269,16 +284,13 @@ pub fn refine(
                     "refinement stopped at the element budget --max-elements {} ({n} elements): \
                      splitting any of the {} elements above --max-error {:e} (tied, e.g. mirror \
                      images) would pass it: {}",
-                    settings.max_elements,
+                    budget,
                     m.wanted.len(),
                     settings.max_error,
                     where_above(scene, &bake, &m.wanted)
                 ));
             }
-            stopped = format!(
-                "stopped at the element budget --max-elements {}",
-                settings.max_elements
-            );
+            stopped = format!("stopped at the element budget --max-elements {budget}");
             break;
         }
         let mut marked = vec![false; n];
@@ -314,6 +326,7 @@ pub fn refine(
         passes,
         elements_before: before,
         elements_after: bake.mesh.elements.len(),
+        budget,
         split,
         above_target: above,
         discontinuity_vertices,

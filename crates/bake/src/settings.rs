@@ -100,8 +100,8 @@ pub struct Request {
     /// `--refine on|off`: split elements where the light changes and solve again (on when
     /// `None`).
     pub refine: Option<bool>,
-    /// `--max-elements`: the element budget of refinement ([`crate::DEFAULT_MAX_ELEMENTS`]
-    /// when `None`).
+    /// `--max-elements`: the element budget of refinement ([`Settings::element_budget`]'s
+    /// default when `None`).
     pub max_elements: Option<u64>,
 }
 
@@ -182,8 +182,9 @@ pub struct Settings {
     /// then refinement that stops short of it warns. Otherwise (the preset's defaults) the
     /// report's `refinement` says where it stopped and the bake stays quiet.
     pub warn_refinement: bool,
-    /// Refinement stops before the mesh passes this many elements.
-    pub max_elements: u64,
+    /// `--max-elements`: refinement stops before the mesh passes this many elements (`None`:
+    /// [`Settings::element_budget`]'s default).
+    pub max_elements: Option<u64>,
     /// Elements are split at most this many times below the grid
     /// ([`crate::refine::MAX_LEVELS`]; `tools/accuracy-report` lowers it so that its
     /// reference mesh resolves every refined element).
@@ -191,6 +192,17 @@ pub struct Settings {
 }
 
 impl Settings {
+    /// Refinement's element budget for a bake of `grid` elements: `--max-elements`, or by
+    /// default the larger of [`crate::DEFAULT_MAX_ELEMENTS`] and the grid plus a quarter
+    /// ([`crate::DEFAULT_GROWTH_DIVISOR`]).
+    pub fn element_budget(&self, grid: usize) -> u64 {
+        self.max_elements.unwrap_or_else(|| {
+            let grid = grid as u64;
+            crate::DEFAULT_MAX_ELEMENTS
+                .max(grid.saturating_add(grid / crate::DEFAULT_GROWTH_DIVISOR))
+        })
+    }
+
     /// Fills in the preset of `request.quality` and the defaults; checks the combinations.
     pub fn resolve(request: &Request, polygons: &[Polygon]) -> Result<Settings, BakeError> {
         let preset = request.quality.preset();
@@ -302,7 +314,7 @@ impl Settings {
             warn_refinement: request.refine == Some(true)
                 || request.max_error.is_some()
                 || request.max_elements.is_some(),
-            max_elements: request.max_elements.unwrap_or(crate::DEFAULT_MAX_ELEMENTS),
+            max_elements: request.max_elements,
             refine_levels: crate::refine::MAX_LEVELS,
         })
     }

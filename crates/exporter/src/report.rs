@@ -247,6 +247,9 @@ pub struct RefinementInfo {
     pub passes: u32,
     pub elements_before: usize,
     pub elements_after: usize,
+    /// The element budget it ran under (`--max-elements`, or its default for the scene).
+    #[serde(default)]
+    pub budget: u64,
     /// Elements split over all passes.
     pub split: usize,
     /// Elements still above the target when it stopped.

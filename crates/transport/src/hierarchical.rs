@@ -4,7 +4,9 @@
 //! Each input polygon is the root of a tree whose leaves are its elements (the mesher's grid):
 //! a quad's nu × nv grid is halved along its longer side until single elements remain (grids
 //! need not be powers of two), a triangle's n × n split is cut into four similar triangles
-//! while n is even and into its elements when n is odd. Light moves along *links* between two
+//! while n is even and into its elements when n is odd. On a refined mesh
+//! (`ElementMesh::refine`) a grid element that was split is the node over its four quarters,
+//! recursively, so links can go below the grid's leaves where the mesh was refined. Light moves along *links* between two
 //! nodes p and q, each carrying `G = A_p F_pq = A_q F_qp` (the form-factor crate's estimator on
 //! the two node polygons, times a visible fraction from shadow rays where some polygon can come
 //! between them), so the operator is exactly reciprocal and conserves energy.
@@ -167,6 +169,8 @@ pub enum LinkError {
     },
     #[error("polygon {0} has no elements in the mesh")]
     Mesh(usize),
+    #[error("polygon {0}'s refined elements are not quarters of its grid's elements")]
+    Refinement(usize),
     #[error("a coarse solve between linking passes failed: {0}")]
     Solve(#[from] SolveError),
 }
@@ -1290,8 +1294,7 @@ fn build_trees(polygons: &[Polygon], mesh: &ElementMesh) -> Result<Trees, LinkEr
     let mut children = Vec::new();
     let mut roots = Vec::with_capacity(polygons.len());
     for (k, (polygon, grid)) in polygons.iter().zip(&mesh.patches).enumerate() {
-        let count = grid.elements.len() as u32;
-        if count == 0 {
+        if grid.elements.is_empty() {
             return Err(LinkError::Mesh(k));
         }
         let mut tree = Tree {
@@ -1302,13 +1305,20 @@ fn build_trees(polygons: &[Polygon], mesh: &ElementMesh) -> Result<Trees, LinkEr
             normal: polygon.normal,
             e0: grid.elements.start,
             v0: grid.vertices.start,
+            cells: Vec::new(),
         };
+        // A refined mesh: each grid element is its own subtree of quarters.
+        if !mesh.levels.is_empty() {
+            tree.refined_cells(grid.elements.clone())?;
+        }
+        let count = tree.cell_count(grid.elements.len() as u32);
         let root = if polygon.vertices.len() == 4 {
             // Row-major nu × nv grid: element k < nu of the first row starts at vertex k, the
-            // first element of the second row at vertex nu + 1.
+            // first element of the second row at vertex nu + 1 (on a refined mesh: the first
+            // quarter of grid element k starts at its corner 0).
             let nu = (0..count)
                 .find(|&k| {
-                    mesh.elements[(grid.elements.start + k) as usize].corners[0]
+                    mesh.elements[tree.first_element(k) as usize].corners[0]
                         != grid.vertices.start + k
                 })
                 .unwrap_or(count);
@@ -1336,9 +1346,73 @@ struct Tree<'a> {
     normal: DVec3,
     e0: u32,
     v0: u32,
+    /// On a refined mesh, per grid element (in grid order): its node (the element itself, or
+    /// the root of the quarters it was split into) and its first element. Empty on the grids,
+    /// where grid element k is element `e0 + k`.
+    cells: Vec<(u32, u32)>,
 }
 
 impl Tree<'_> {
+    /// How many grid elements the polygon has (`elements` on the grids).
+    fn cell_count(&self, elements: u32) -> u32 {
+        if self.cells.is_empty() {
+            elements
+        } else {
+            self.cells.len() as u32
+        }
+    }
+
+    /// The node of grid element k.
+    fn cell(&self, k: u32) -> u32 {
+        self.cells.get(k as usize).map_or(self.e0 + k, |c| c.0)
+    }
+
+    /// The first element of grid element k.
+    fn first_element(&self, k: u32) -> u32 {
+        self.cells.get(k as usize).map_or(self.e0 + k, |c| c.1)
+    }
+
+    /// The subtrees of a refined polygon's elements `range`: `ElementMesh::refine` keeps each
+    /// element in place or replaces it by its four quarters (corner k of the parent is corner
+    /// k of quarter k), so the elements are the grid's in order, each followed depth-first by
+    /// its quarters, and their levels are enough to rebuild the splits.
+    fn refined_cells(&mut self, range: std::ops::Range<u32>) -> Result<(), LinkError> {
+        let mut at = range.start;
+        while at < range.end {
+            let first = at;
+            let node = self.quarters(&mut at, range.end, 0)?;
+            self.cells.push((node, first));
+        }
+        Ok(())
+    }
+
+    /// The node of the element, or split element, at `at` of level `depth`.
+    fn quarters(&mut self, at: &mut u32, end: u32, depth: u8) -> Result<u32, LinkError> {
+        let i = *at;
+        let malformed = LinkError::Refinement(self.polygon as usize);
+        if i >= end {
+            return Err(malformed);
+        }
+        let level = self.mesh.level(i as usize);
+        if level == depth {
+            *at += 1;
+            return Ok(i);
+        }
+        if level < depth || depth >= u8::MAX - 1 {
+            return Err(malformed);
+        }
+        let sides = usize::from(self.mesh.elements[i as usize].sides);
+        let mut kids = [0u32; 4];
+        for kid in &mut kids {
+            *kid = self.quarters(at, end, depth + 1)?;
+        }
+        // Corner k of the split element is corner k of its k-th quarter.
+        let corners: Vec<DVec3> = (0..sides)
+            .map(|k| self.nodes[kids[k] as usize].surface.corners[k])
+            .collect();
+        Ok(self.interior(&corners, &kids))
+    }
+
     fn vertex(&self, k: u32) -> DVec3 {
         self.mesh.vertices[(self.v0 + k) as usize]
     }
@@ -1380,7 +1454,7 @@ impl Tree<'_> {
     /// (world lengths `du`, `dv` per column and row).
     fn quad(&mut self, nu: u32, [i0, i1, j0, j1]: [u32; 4], du: f64, dv: f64) -> u32 {
         if i1 - i0 == 1 && j1 - j0 == 1 {
-            return self.e0 + j0 * nu + i0;
+            return self.cell(j0 * nu + i0);
         }
         let split_i =
             j1 - j0 == 1 || (i1 - i0 > 1 && (i1 - i0) as f64 * du >= (j1 - j0) as f64 * dv);
@@ -1417,7 +1491,7 @@ impl Tree<'_> {
     /// Element index of the upward (`down = false`) or downward triangle of cell (i, k).
     fn tri_element(&self, n: u32, i: u32, k: u32, down: bool) -> u32 {
         // Row k holds 2 (n − k) − 1 elements: Σ_{k' < k} = 2 n k − k².
-        self.e0 + 2 * n * k - k * k + 2 * i + u32::from(down)
+        self.cell(2 * n * k - k * k + 2 * i + u32::from(down))
     }
 
     /// The upward triangle of side m with corner cell (i0, k0).

@@ -86,7 +86,35 @@ fn build(
     subdivision: Subdivision,
     tolerance: f64,
 ) -> (HierarchicalTransport, Vec<f64>) {
-    let mesh = mesher::mesh(polygons, subdivision).expect("mesh");
+    build_on(
+        polygons,
+        mesher::mesh(polygons, subdivision).expect("mesh"),
+        tolerance,
+    )
+}
+
+/// Refines `mesh` twice: every third element, then every second element of those quarters
+/// that lie in the first half of each polygon's range (levels 0, 1 and 2 side by side, with
+/// hanging vertices).
+fn refined(mesh: mesher::ElementMesh) -> mesher::ElementMesh {
+    let first: Vec<bool> = (0..mesh.elements.len()).map(|i| i % 3 == 0).collect();
+    let once = mesh.refine(&first).expect("refine").mesh;
+    let second: Vec<bool> = (0..once.elements.len())
+        .map(|i| {
+            let p = &once.patches[once.elements[i].polygon as usize].elements;
+            once.level(i) == 1 && i % 2 == 0 && (i as u32) < (p.start + p.end) / 2
+        })
+        .collect();
+    let twice = once.refine(&second).expect("refine").mesh;
+    assert!((0..twice.elements.len()).any(|i| twice.level(i) == 2));
+    twice
+}
+
+fn build_on(
+    polygons: &[Polygon],
+    mesh: mesher::ElementMesh,
+    tolerance: f64,
+) -> (HierarchicalTransport, Vec<f64>) {
     let occluders = Occluders::new(polygons).expect("occluders");
     let n = mesh.elements.len();
     let mut e = vec![[0.0; 3]; n];
@@ -110,9 +138,17 @@ fn build(
 }
 
 fn check_furnace_and_reciprocity(polygons: &[Polygon], subdivision: Subdivision) {
+    check_operator(polygons, subdivision, false);
+}
+
+/// The furnace identity and reciprocity of the operator on the grids, or (`refine`) on a
+/// mesh refined below them ([`refined`]).
+fn check_operator(polygons: &[Polygon], subdivision: Subdivision, refine: bool) {
     let mut previous = f64::INFINITY;
     for tolerance in [1e-1, 1e-2, 1e-3] {
-        let (h, areas) = build(polygons, subdivision, tolerance);
+        let mesh = mesher::mesh(polygons, subdivision).expect("mesh");
+        let mesh = if refine { refined(mesh) } else { mesh };
+        let (h, areas) = build_on(polygons, mesh, tolerance);
         let n = h.n();
         let mut sums = vec![0.0; n];
         h.apply(&vec![1.0; n], &mut sums);
@@ -160,6 +196,18 @@ fn triangle_trees_cover_every_element_once() {
     // 4 = 2·2 (split into four twice), 6 = 2·3 (four, then elements), 5 (elements at once).
     for n in [4, 5, 6] {
         check_furnace_and_reciprocity(&tetrahedron(), Subdivision::Count(n));
+    }
+}
+
+#[test]
+fn trees_of_refined_meshes_cover_every_element_once() {
+    // Below the grids: quads and triangles split into quarters at two levels, beside
+    // unsplit elements (the trees continue below grid elements into their quarters).
+    for size in [0.45, 1.0] {
+        check_operator(&box_walls(), Subdivision::MaxSize(size), true);
+    }
+    for n in [4, 5] {
+        check_operator(&tetrahedron(), Subdivision::Count(n), true);
     }
 }
 
