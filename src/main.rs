@@ -185,8 +185,8 @@ pub struct Cli {
     /// `off` keeps the uniform mesh.
     #[arg(long, value_enum, value_name = "on|off")]
     pub refine: Option<OnOff>,
-    /// The element budget of refinement [default: the larger of 2000 (the dense crossover)
-    /// and the grid's elements plus a quarter].
+    /// The element budget of refinement [default: 2000, the dense crossover; on the
+    /// hierarchical transport the grid's elements plus a quarter where that is more].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub max_elements: Option<u64>,
 

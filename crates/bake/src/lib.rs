@@ -192,9 +192,9 @@ pub const DENSE_CROSSOVER: usize = 2_000;
 /// what the dense transport takes).
 pub const DEFAULT_MAX_ELEMENTS: u64 = DENSE_CROSSOVER as u64;
 
-/// By default refinement may add a quarter of the grid's elements to a scene larger than
-/// [`DEFAULT_MAX_ELEMENTS`] × 4/5 (the hierarchical transport's walkthroughs): refined
-/// elements are a small share of a large scene, so its time and memory grow by about as much.
+/// By default refinement on the hierarchical transport may add a quarter of the grid's
+/// elements (where that passes [`DEFAULT_MAX_ELEMENTS`]): the time and memory of each solve
+/// grow by about as much.
 pub const DEFAULT_GROWTH_DIVISOR: u64 = 4;
 
 /// Bakes `scene` with `settings`: mesh, visibility, transport, solve (and `H = F b` if asked),

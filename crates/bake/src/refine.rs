@@ -202,7 +202,7 @@ pub fn refine(
     } else {
         MAX_PASSES
     };
-    let budget = settings.element_budget(before);
+    let budget = settings.element_budget(before, hierarchical);
     let mut timings: Vec<(&'static str, f64)> = bake.timings.clone();
     let add_timings = |timings: &mut Vec<(&'static str, f64)>, more: &[(&'static str, f64)]| {
         for &(name, t) in more {

@@ -193,13 +193,18 @@ pub struct Settings {
 
 impl Settings {
     /// Refinement's element budget for a bake of `grid` elements: `--max-elements`, or by
-    /// default the larger of [`crate::DEFAULT_MAX_ELEMENTS`] and the grid plus a quarter
-    /// ([`crate::DEFAULT_GROWTH_DIVISOR`]).
-    pub fn element_budget(&self, grid: usize) -> u64 {
+    /// default [`crate::DEFAULT_MAX_ELEMENTS`] (the dense crossover, so that a dense bake stays
+    /// dense), and on the hierarchical transport (`hierarchical`) the grid plus a quarter
+    /// ([`crate::DEFAULT_GROWTH_DIVISOR`]) where that is more.
+    pub fn element_budget(&self, grid: usize, hierarchical: bool) -> u64 {
         self.max_elements.unwrap_or_else(|| {
             let grid = grid as u64;
-            crate::DEFAULT_MAX_ELEMENTS
-                .max(grid.saturating_add(grid / crate::DEFAULT_GROWTH_DIVISOR))
+            if hierarchical {
+                crate::DEFAULT_MAX_ELEMENTS
+                    .max(grid.saturating_add(grid / crate::DEFAULT_GROWTH_DIVISOR))
+            } else {
+                crate::DEFAULT_MAX_ELEMENTS
+            }
         })
     }
 
