@@ -188,8 +188,8 @@ pub const MAX_BOUNCES: u32 = 10_000;
 /// Scenes up to this many elements get the dense transport under `--transport auto`.
 pub const DENSE_CROSSOVER: usize = 2_000;
 
-/// The least default `--max-elements` (the dense crossover: a small scene may refine up to
-/// what the dense transport takes).
+/// The default `--max-elements` of a dense bake (the dense crossover: a small scene refines up
+/// to what the dense transport takes), and the least of a hierarchical one.
 pub const DEFAULT_MAX_ELEMENTS: u64 = DENSE_CROSSOVER as u64;
 
 /// By default refinement on the hierarchical transport may add a quarter of the grid's

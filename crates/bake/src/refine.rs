@@ -165,7 +165,7 @@ fn where_above(scene: &Scene, bake: &Bake, elements: &[usize]) -> String {
 }
 
 /// Refines `first` (a bake on the grids) as the module docs say; returns it unchanged when
-/// refinement is off or links are saved or loaded.
+/// refinement is off, links are saved or loaded, or a hierarchical bake did not ask for it.
 pub fn refine(
     scene: &Scene,
     settings: &Settings,
