@@ -189,6 +189,12 @@ pub struct Cli {
     /// hierarchical transport the grid's elements plus a quarter where that is more].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub max_elements: Option<u64>,
+    /// Reflectances at or above 1 (glTF's default material, a white texture on a white base
+    /// colour) reflect all light, which no real surface does and which leaves a closed scene
+    /// with an emitter no finite answer: they are lowered to R (one warning names the
+    /// materials). Values below 1 stay as authored; 1 keeps them.
+    #[arg(long, value_name = "R", default_value_t = bake_core::DEFAULT_MAX_REFLECTANCE)]
+    pub max_reflectance: f64,
 
     /// Hierarchical transport: the largest estimated error of one link's contribution to the
     /// radiosity of its receiver, relative to the scene's mean radiosity [default: from
@@ -322,6 +328,7 @@ impl Cli {
             load_links: self.load_links.clone(),
             refine: self.refine.map(|r| r == OnOff::On),
             max_elements: self.max_elements,
+            max_reflectance: Some(self.max_reflectance),
         }
     }
 }

@@ -386,6 +386,12 @@ pub fn run(cli: &Cli) -> Result<(), Failure> {
             row_sum_accuracy: a.row_sum_accuracy,
             condition_bound: Some(a.condition_bound).filter(|c| c.is_finite()),
             error_bound: a.error_bound.map(|b| b.filter(|b| b.is_finite())),
+            row_sums: a.row_sums.map(|r| exporter::report::RowSumsInfo {
+                largest_before: r.largest_before,
+                largest_after: r.largest_after,
+                scaled: r.scaled,
+                seen_twice: r.seen_twice,
+            }),
             error: Some(error_summary(mesh, &bake.error)),
         });
         let r = &bake.refinement;

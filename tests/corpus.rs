@@ -10,10 +10,10 @@
 
 mod common;
 
-use common::skip;
+use common::{files_with_extensions, run_limited, skip};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
@@ -37,75 +37,25 @@ enum Outcome {
     Failed(String),
 }
 
-/// Files under `dir` whose extension (lower-cased) is one of `extensions`, sorted.
-fn files(dir: &Path, extensions: &[&str]) -> Vec<PathBuf> {
-    let mut found = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(dir) = stack.pop() {
-        let Ok(entries) = std::fs::read_dir(&dir) else {
-            continue;
-        };
-        for path in entries.flatten().map(|e| e.path()) {
-            if path.is_dir() {
-                stack.push(path);
-            } else if path
-                .extension()
-                .and_then(|e| e.to_str())
-                .is_some_and(|e| extensions.contains(&e.to_ascii_lowercase().as_str()))
-            {
-                found.push(path);
-            }
-        }
-    }
-    found.sort();
-    found
-}
-
 /// Runs `bake INPUT OUT --quiet --subdiv 1` under the memory cap and time limit.
 fn bake(input: &Path, out: &Path) -> Outcome {
     let script = format!("ulimit -v {MEMORY_KIB} && exec \"$0\" \"$@\"");
-    let child = Command::new("sh")
+    let mut command = Command::new("sh");
+    command
         .arg("-c")
         .arg(script)
         .arg(env!("CARGO_BIN_EXE_bake"))
         .arg(input)
         .arg(out)
-        .args(["--quiet", "--subdiv", "1"])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn();
-    let mut child = match child {
-        Ok(child) => child,
-        Err(e) => return Outcome::Failed(format!("cannot start: {e}")),
+        .args(["--quiet", "--subdiv", "1"]);
+    let run = match run_limited(command, TIME_LIMIT) {
+        Ok(run) => run,
+        Err(e) => return Outcome::Failed(format!("cannot run: {e}")),
     };
-    // Read stderr on a thread so a chatty child never blocks on a full pipe.
-    let stderr = child.stderr.take();
-    let reader = std::thread::spawn(move || {
-        let mut text = String::new();
-        if let Some(mut stderr) = stderr {
-            let _ = std::io::Read::read_to_string(&mut stderr, &mut text);
-        }
-        text
-    });
-    let started = Instant::now();
-    let status = loop {
-        match child.try_wait() {
-            Ok(Some(status)) => break Some(status),
-            Ok(None) if started.elapsed() > TIME_LIMIT => {
-                let _ = child.kill();
-                let _ = child.wait();
-                break None;
-            }
-            Ok(None) => std::thread::sleep(Duration::from_millis(10)),
-            Err(e) => return Outcome::Failed(format!("cannot wait: {e}")),
-        }
-    };
-    let stderr = reader.join().unwrap_or_default();
-    let Some(status) = status else {
+    let Some(status) = run.status else {
         return Outcome::Failed(format!("still running after {TIME_LIMIT:?}: killed"));
     };
-    judge(status.code(), &stderr, out)
+    judge(status.code(), &run.stderr, out)
 }
 
 /// The outcome of a finished run from its exit code, stderr and output.
@@ -152,8 +102,11 @@ fn every_corpus_file_bakes_or_is_refused_in_one_line() {
         );
         return;
     }
-    let mut inputs = files(&corpus.join("gltf-validator"), &["gltf", "glb"]);
-    inputs.extend(files(&corpus.join("tinyobjloader"), &["obj"]));
+    let mut inputs = files_with_extensions(&corpus.join("gltf-validator"), &["gltf", "glb"]);
+    inputs.extend(files_with_extensions(
+        &corpus.join("tinyobjloader"),
+        &["obj"],
+    ));
     assert!(!inputs.is_empty(), "the corpus has no files");
     let dir = tempfile::tempdir().expect("a temporary directory");
 

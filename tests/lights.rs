@@ -538,3 +538,60 @@ fn shadowed_lights_give_the_same_bytes_for_one_and_two_threads() {
     assert_eq!(outputs[0].1.elements, outputs[1].1.elements);
     assert_eq!(outputs[0].1.lights, outputs[1].1.lights);
 }
+
+#[test]
+fn a_light_behind_every_surface_is_named_and_one_in_front_is_not() {
+    // Under the floor (it faces +y) the point light reaches no surface facing it; 2 m above,
+    // the 10 × 10 m floor subtends 2.2 sr of its 4π (17.6%): no warning.
+    for (h, warned) in [(-1.0, true), (2.0, false)] {
+        let dir = tempfile::tempdir().expect("a temporary directory");
+        let doc = scene(
+            &[(floor(), RHO)],
+            &[(
+                json!({ "type": "point", "intensity": 100.0, "name": "bulb" }),
+                json!({ "translation": [0.0, h, 0.0] }),
+            )],
+        );
+        let report = bake_json(dir.path(), "in", &doc, &[]);
+        let named: Vec<&String> = report
+            .warnings
+            .iter()
+            .filter(|w| w.contains("point light \"bulb\"") && w.contains("inside or behind"))
+            .collect();
+        assert_eq!(named.len(), usize::from(warned), "{:?}", report.warnings);
+        if warned {
+            assert!(named[0].contains("node \"light0\""), "{named:?}");
+            assert!(named[0].contains("0.00% of its light"), "{named:?}");
+        }
+    }
+}
+
+#[test]
+fn the_default_material_under_a_lamp_bakes_at_the_reflectance_ceiling() {
+    // glTF's default material (no pbrMetallicRoughness) is ρ = 1: lowered to 0.98 with one
+    // warning; on an open floor every element's b is then 0.98 × its direct irradiance E/π.
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let mut doc = scene(
+        &[(floor(), RHO)],
+        &[(
+            json!({ "type": "point", "intensity": 100.0 }),
+            json!({ "translation": [0.0, 2.0, 0.0] }),
+        )],
+    );
+    doc["materials"][0] = json!({});
+    let report = bake_json(dir.path(), "in", &doc, &[]);
+    let warned = report
+        .warnings
+        .iter()
+        .filter(|w| w.contains("--max-reflectance 0.98") && w.contains("material 0"))
+        .count();
+    assert_eq!(warned, 1, "{:?}", report.warnings);
+    for e in &report.elements {
+        assert_eq!(e.rho, [0.98; 3]);
+        for c in 0..3 {
+            let expect = e.direct[c];
+            assert!((e.b[c] - expect).abs() <= 1e-12 * expect.max(1.0), "{e:?}");
+            assert!(e.direct[c] > 0.0);
+        }
+    }
+}

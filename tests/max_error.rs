@@ -216,9 +216,30 @@ fn an_explicit_loose_tolerance_is_refused_saying_which_option() {
 }
 
 #[test]
-fn gltf_default_material_in_a_closed_box_is_refused_naming_it() {
+fn gltf_default_material_in_a_closed_box_bakes_with_a_warning() {
+    // glTF's default material is ρ = 1: lowered to --max-reflectance 0.98, one warning.
     let dir = tempfile::tempdir().expect("tempdir");
-    let (out, _) = run(dir.path(), &box_gltf(None), &["--subdiv", "2"]);
+    let (out, report) = run(dir.path(), &box_gltf(None), &["--subdiv", "2"]);
+    assert_eq!(out.code, Some(0), "{out:#?}");
+    let report = report.expect("report");
+    let warned: Vec<&String> = report
+        .warnings
+        .iter()
+        .filter(|w| w.contains("--max-reflectance 0.98"))
+        .collect();
+    assert_eq!(warned.len(), 1, "{:?}", report.warnings);
+    assert!(warned[0].contains("glTF's default material"), "{warned:?}");
+    assert_eq!(report.accuracy.expect("accuracy").rho_max, 0.98);
+}
+
+#[test]
+fn gltf_default_material_in_a_closed_box_is_refused_naming_it_when_kept() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (out, _) = run(
+        dir.path(),
+        &box_gltf(None),
+        &["--subdiv", "2", "--max-reflectance", "1"],
+    );
     let lines = out.error_lines();
     assert_eq!(out.code, Some(1), "{out:#?}");
     assert_eq!(lines.len(), 1, "{lines:?}");

@@ -268,13 +268,48 @@ fn furnace_box_gives_e_over_one_minus_rho_with_both_solvers() {
 }
 
 #[test]
-fn closed_box_with_rho_one_and_an_emitter_is_refused() {
-    // Light is never absorbed and never escapes: no finite solution. Both solvers (and the
-    // default) must say so in one line, exit 1 and write nothing.
+fn closed_box_with_rho_one_bakes_at_the_reflectance_ceiling_with_a_warning() {
+    // ρ = 1 is lowered to --max-reflectance (0.98 by default) at import: the furnace box then
+    // has b = e / (1 − 0.98) = 50 everywhere (eq. 7 with closed rows), and one warning names
+    // the material.
+    for (args, ceiling) in [(vec![], 0.98), (vec!["--max-reflectance", "0.9"], 0.9)] {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let input = furnace_box(dir.path(), 1.0, 1.0);
+        let mut all = vec!["--max-element-size", "0.2"];
+        all.extend(args.iter().copied());
+        let out = run(&input, dir.path(), &all);
+        assert_eq!(out.status.code(), Some(0), "{out:?}");
+        let report = read_report(&dir.path().join("report.json")).expect("report");
+        let expect = 1.0 / (1.0 - ceiling);
+        let worst = report
+            .elements
+            .iter()
+            .flat_map(|el| el.b)
+            .map(|b| (b - expect).abs() / expect)
+            .fold(0.0f64, f64::max);
+        eprintln!("ρ = 1 lowered to {ceiling}: worst |b − {expect}| / b = {worst:.2e}");
+        assert!(worst < 1e-9, "{worst}");
+        let warned: Vec<&String> = report
+            .warnings
+            .iter()
+            .filter(|w| w.contains("--max-reflectance") && w.contains("\"wall\""))
+            .collect();
+        assert_eq!(warned.len(), 1, "{:?}", report.warnings);
+        assert!(warned[0].contains(&format!("{ceiling}")), "{warned:?}");
+        let accuracy = report.accuracy.expect("accuracy");
+        assert_eq!(accuracy.rho_max, ceiling);
+    }
+}
+
+#[test]
+fn closed_box_with_rho_one_and_an_emitter_is_refused_when_kept() {
+    // With --max-reflectance 1 the ρ = 1 stays: light is never absorbed and never escapes,
+    // no finite solution. Both solvers (and the default) must say so in one line, exit 1 and
+    // write nothing.
     for solver in [None, Some("direct"), Some("iterative")] {
         let dir = tempfile::tempdir().expect("tempdir");
         let input = furnace_box(dir.path(), 1.0, 1.0);
-        let mut args = vec!["--max-element-size", "0.2"];
+        let mut args = vec!["--max-element-size", "0.2", "--max-reflectance", "1"];
         if let Some(solver) = solver {
             args.extend(["--solver", solver]);
         }
@@ -318,6 +353,13 @@ fn a_scene_without_emitters_is_dark_with_a_warning() {
         assert_eq!(energy.imbalance, [0.0; 3]);
         assert_eq!(energy.imbalance_relative, [false; 3]);
         assert!(report.warnings.iter().any(|w| w.contains("no emitters")));
+        // Nothing to compute, nothing computed: no form factor, link or ray (a 10 000-polygon
+        // level without light writes its outputs as fast as it reads them).
+        assert_eq!(report.counts.pairs_evaluated, 0);
+        assert_eq!(report.counts.rays_cast, 0);
+        for stage in ["form_factors", "links", "occludable_pairs", "solve"] {
+            assert!(!report.timings.contains_key(stage), "{:?}", report.timings);
+        }
     }
 }
 

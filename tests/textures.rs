@@ -861,3 +861,84 @@ fn an_external_texture_is_read_inside_the_folder_only_and_never_overwritten() {
     ])
     .success();
 }
+
+#[test]
+fn a_white_texture_on_a_white_factor_is_lowered_to_the_ceiling_with_a_warning() {
+    // ρ = 1 × white texels = 1: lowered to --max-reflectance (0.98 by default), one warning
+    // naming the material; a grey texture stays as authored.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let white = png(4, 4, |_, _| [255, 255, 255]);
+    let doc = floor_scene([1.0, 1.0, 1.0], Some((white, true)));
+    let report = common::bake_json(dir.path(), "white", &doc, &[]);
+    let floor: Vec<_> = report
+        .elements
+        .iter()
+        .filter(|e| e.normal[1] > 0.5)
+        .collect();
+    assert!(!floor.is_empty());
+    for e in &floor {
+        assert_eq!(e.rho, [0.98; 3], "{e:?}");
+    }
+    let warned: Vec<&String> = report
+        .warnings
+        .iter()
+        .filter(|w| w.contains("--max-reflectance 0.98") && w.contains("material 0"))
+        .collect();
+    assert_eq!(warned.len(), 1, "{:?}", report.warnings);
+
+    let grey = png(4, 4, |_, _| [188, 188, 188]);
+    let doc = floor_scene([1.0, 1.0, 1.0], Some((grey, true)));
+    let report = common::bake_json(dir.path(), "grey", &doc, &[]);
+    assert!(
+        report
+            .warnings
+            .iter()
+            .all(|w| !w.contains("--max-reflectance")),
+        "{:?}",
+        report.warnings
+    );
+    for e in report.elements.iter().filter(|e| e.normal[1] > 0.5) {
+        assert!(e.rho[0] < 0.98 && e.rho[0] > 0.4, "{e:?}");
+    }
+}
+
+#[test]
+fn an_emissive_texture_that_is_the_base_colour_is_named() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let texture = png(4, 4, |x, _| {
+        if x < 2 {
+            [200, 100, 50]
+        } else {
+            [50, 100, 200]
+        }
+    });
+    let mut doc = floor_scene([0.8, 0.8, 0.8], Some((texture, true)));
+    doc["materials"][0]["emissiveTexture"] = json!({ "index": 0 });
+    doc["materials"][0]["emissiveFactor"] = json!([1.0, 1.0, 1.0]);
+    doc["materials"][0]["name"] = json!("screen");
+    let report = common::bake_json(dir.path(), "in", &doc, &[]);
+    let named: Vec<&String> = report
+        .warnings
+        .iter()
+        .filter(|w| w.contains("material \"screen\"") && w.contains("emissive texture"))
+        .collect();
+    assert_eq!(named.len(), 1, "{:?}", report.warnings);
+    // The same picture only as base colour: no warning.
+    let texture = png(4, 4, |x, _| {
+        if x < 2 {
+            [200, 100, 50]
+        } else {
+            [50, 100, 200]
+        }
+    });
+    let doc = floor_scene([0.8, 0.8, 0.8], Some((texture, true)));
+    let report = common::bake_json(dir.path(), "plain", &doc, &[]);
+    assert!(
+        report
+            .warnings
+            .iter()
+            .all(|w| !w.contains("emissive texture")),
+        "{:?}",
+        report.warnings
+    );
+}

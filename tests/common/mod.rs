@@ -510,3 +510,76 @@ pub fn aim(d: [f64; 3]) -> [f64; 4] {
     let n = (x * x + y * y + z * z + w * w).sqrt();
     [x / n, y / n, z / n, w / n]
 }
+
+/// Files under `dir` (recursively) whose extension, lower-cased, is one of `extensions`,
+/// sorted (for the corpus tests).
+pub fn files_with_extensions(dir: &Path, extensions: &[&str]) -> Vec<PathBuf> {
+    let mut found = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        for path in entries.flatten().map(|e| e.path()) {
+            if path.is_dir() {
+                stack.push(path);
+            } else if path
+                .extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| extensions.contains(&e.to_ascii_lowercase().as_str()))
+            {
+                found.push(path);
+            }
+        }
+    }
+    found.sort();
+    found
+}
+
+/// How a run under [`run_limited`] ended.
+pub struct Limited {
+    /// `None` when it ran past the limit and was killed.
+    pub status: Option<std::process::ExitStatus>,
+    pub stderr: String,
+    pub seconds: f64,
+}
+
+/// Runs `command` (stdin and stdout null, stderr captured on a thread so a chatty child never
+/// blocks on a full pipe), killing it past `limit`.
+pub fn run_limited(
+    mut command: Command,
+    limit: std::time::Duration,
+) -> Result<Limited, std::io::Error> {
+    use std::process::Stdio;
+    let mut child = command
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()?;
+    let stderr = child.stderr.take();
+    let reader = std::thread::spawn(move || {
+        let mut text = String::new();
+        if let Some(mut stderr) = stderr {
+            let _ = std::io::Read::read_to_string(&mut stderr, &mut text);
+        }
+        text
+    });
+    let started = std::time::Instant::now();
+    let status = loop {
+        match child.try_wait()? {
+            Some(status) => break Some(status),
+            None if started.elapsed() > limit => {
+                let _ = child.kill();
+                let _ = child.wait();
+                break None;
+            }
+            None => std::thread::sleep(std::time::Duration::from_millis(10)),
+        }
+    };
+    let seconds = started.elapsed().as_secs_f64();
+    Ok(Limited {
+        status,
+        stderr: reader.join().unwrap_or_default(),
+        seconds,
+    })
+}

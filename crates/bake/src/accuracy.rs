@@ -68,6 +68,24 @@ pub struct Accuracy {
     /// accuracy, the bound on the relative error of `b` that the form factors' accuracy
     /// leaves (`None` where the band was not solved as a linear system).
     pub error_bound: [Option<f64>; BANDS],
+    /// Dense transport: rows of F past 1 and what was done about them
+    /// ([`form_factor::DenseFormFactors::limit_row_sums`]); `None` on other transports.
+    pub row_sums: Option<RowSums>,
+}
+
+/// The dense transport's row sums Σ_j F_ij, before and after rows past 1 were scaled to 1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RowSums {
+    /// The largest row sum as integrated.
+    pub largest_before: f64,
+    /// The largest row sum the solver was given (≤ 1 up to rounding).
+    pub largest_after: f64,
+    /// Rows that summed past 1 and were scaled to 1.
+    pub scaled: usize,
+    /// Of those, rows past 1 + [`crate::ROW_SUM_WARNING_MARGIN`] (or the row-sum accuracy,
+    /// when larger): surfaces seen twice, not integration or sampling error (the bake warns,
+    /// naming their polygons).
+    pub seen_twice: usize,
 }
 
 #[cfg(test)]

@@ -14,13 +14,14 @@
 //! presets ([`presets`]).
 
 pub mod accuracy;
+pub mod advice;
 pub mod error;
 pub mod presets;
 pub mod refine;
 mod settings;
 
 pub use settings::{
-    EstimatorKind, Request, Settings, Solve, SolverKind, TransportKind,
+    EstimatorKind, Request, Settings, Solve, SolverKind, TransportKind, DEFAULT_MAX_REFLECTANCE,
     HIERARCHICAL_SOLVE_TOLERANCE,
 };
 
@@ -231,7 +232,7 @@ pub(crate) fn run_mesh(
         Some(mesh) => mesh.elements.len() as u64,
         None => mesher::element_count(&scene.polygons, settings.subdivision)?,
     };
-    let rho_bound = scene_rho_bound(scene);
+    let rho_bound = scene_rho_bound(scene, settings.max_reflectance);
     // A refined mesh is chosen for like the grids: both transports take it (the hierarchical
     // one's trees continue below the grid elements into their quarters).
     let mut transport = choose_transport(
@@ -255,11 +256,18 @@ pub(crate) fn run_mesh(
         None => mesher::mesh(&scene.polygons, settings.subdivision)?,
     };
     let n = mesh.elements.len();
-    let (rho, emission) = element_values(scene, &mesh);
+    let (mut rho, emission) = element_values(scene, &mesh);
+    warnings.extend(limit_reflectance(
+        scene,
+        &mesh,
+        &mut rho,
+        settings.max_reflectance,
+    ));
     let rho_max = rho.iter().flatten().copied().fold(0.0f64, f64::max);
     if scene.lights.is_empty() && emission.iter().all(|x| x.iter().all(|&v| v == 0.0)) {
-        warnings.push("the scene has no emitters and no lights: every radiosity is 0".to_string());
+        warnings.push(advice::no_light());
     }
+    warnings.extend(advice::emissive_is_base_colour(scene));
     stage("mesh", &mut lap);
 
     let cutouts = cutouts(scene);
@@ -278,6 +286,7 @@ pub(crate) fn run_mesh(
         },
     );
     progress.finish();
+    warnings.extend(advice::lights_reaching_little(scene, &lit.stats));
     let external: Vec<[f64; BANDS]> = lit
         .illuminance
         .iter()
@@ -316,6 +325,8 @@ pub(crate) fn run_mesh(
     // Polygons some polygon may shadow (shadow rays decided part of their light), and the
     // rays per pair, for the error estimate.
     let mut sampled_polygons = vec![false; scene.polygons.len()];
+    // The dense transport's row-sum limit (what geometry would have created).
+    let mut row_sums = None;
     let mut samples = 0;
     let (solution, irradiance, energy, counts, effects) = if dark {
         transport.reason = format!(
@@ -487,8 +498,14 @@ pub(crate) fn run_mesh(
                     });
                 }
                 progress.start("form factors", n as u64);
-                let matrix = form_factors.dense_with_progress(&|rows| progress.advance(rows));
+                let mut matrix = form_factors.dense_with_progress(&|rows| progress.advance(rows));
                 progress.finish();
+                // Geometry never creates light: rows past 1 (coincident or interpenetrating
+                // surfaces) are scaled to 1, reciprocity kept.
+                let limited =
+                    matrix.limit_row_sums(estimator.row_sum_accuracy().max(ROW_SUM_WARNING_MARGIN));
+                warnings.extend(row_sum_warning(scene, &mesh, &limited.beyond_margin));
+                row_sums = Some(limited);
                 stage("form_factors", &mut lap);
                 let stats = matrix.stats;
                 let counts = Counts {
@@ -539,6 +556,12 @@ pub(crate) fn run_mesh(
         error_bound: solution
             .condition
             .map(|c| c.map(|c| c * rho_max * row_sum_accuracy)),
+        row_sums: row_sums.map(|l: form_factor::RowSumLimit| accuracy::RowSums {
+            largest_before: l.largest,
+            largest_after: l.largest_after,
+            scaled: l.scaled,
+            seen_twice: l.beyond_margin.len(),
+        }),
     };
 
     let sampled: Vec<bool> = mesh
@@ -687,6 +710,77 @@ fn explain_refusal(
     BakeError::Unsolvable { error, hint }
 }
 
+/// Dense rows of F that sum past 1 by more than this (or the estimator's stated accuracy,
+/// when larger) are named in a warning: shadow-ray estimates of partly hidden pairs move row
+/// sums by up to ~1% (two rooms at 121 rays per pair: 1.0085; the Cornell box 1.0003), while
+/// coincident or overlapping surfaces seen twice add their whole share (1.9 in
+/// `graz_overlap.obj`). Every row past 1 is scaled to 1 whether named or not.
+pub const ROW_SUM_WARNING_MARGIN: f64 = 0.05;
+
+/// The warning for rows of F that summed past 1 + the margin and were scaled to 1
+/// ([`form_factor::DenseFormFactors::limit_row_sums`]): how many elements, the largest sum,
+/// and the polygons with most of them (index, mesh, source face, material).
+fn row_sum_warning(scene: &Scene, mesh: &ElementMesh, over: &[(usize, f64)]) -> Option<String> {
+    let largest = over.iter().map(|&(_, s)| s).fold(0.0f64, f64::max);
+    if over.is_empty() {
+        return None;
+    }
+    let mut by_polygon = std::collections::BTreeMap::<u32, (usize, f64)>::new();
+    for &(i, sum) in over {
+        let entry = by_polygon.entry(mesh.elements[i].polygon).or_default();
+        entry.0 += 1;
+        entry.1 = entry.1.max(sum);
+    }
+    let mut ranked: Vec<(u32, (usize, f64))> = by_polygon.into_iter().collect();
+    ranked.sort_by(|a, b| b.1 .1.total_cmp(&a.1 .1).then(a.0.cmp(&b.0)));
+    const SHOWN: usize = 4;
+    let named: Vec<String> = ranked
+        .iter()
+        .take(SHOWN)
+        .map(|&(p, (_, sum))| format!("{} (row sum {sum:.3})", polygon_name(scene, p as usize)))
+        .collect();
+    let more = if ranked.len() > SHOWN {
+        format!(" and {} more polygons", ranked.len() - SHOWN)
+    } else {
+        String::new()
+    };
+    Some(format!(
+        "form factors of {} element{} summed past 1, up to {largest:.3}: coincident, \
+         overlapping or interpenetrating surfaces are seen twice, which would create light; \
+         those rows were scaled down to 1 (reciprocity kept) on {}{more}",
+        over.len(),
+        if over.len() == 1 { "" } else { "s" },
+        named.join(", ")
+    ))
+}
+
+/// How messages name a polygon: its index, the mesh and source face it came from, and its
+/// material.
+fn polygon_name(scene: &Scene, polygon: usize) -> String {
+    let Some(p) = scene.polygons.get(polygon) else {
+        return format!("polygon {polygon}");
+    };
+    let mesh = match scene.layout.meshes.get(p.origin.mesh) {
+        Some(m) => match m.name.as_deref() {
+            Some(name) => format!("mesh {name:?}"),
+            None => format!("mesh {}", p.origin.mesh),
+        },
+        None => format!("mesh {}", p.origin.mesh),
+    };
+    let material = match scene
+        .materials
+        .get(p.material)
+        .and_then(|m| m.name.as_deref())
+    {
+        Some(name) => format!("material {name:?}"),
+        None => format!("material {}", p.material),
+    };
+    format!(
+        "polygon {polygon} ({mesh}, face {}, {material})",
+        p.origin.face
+    )
+}
+
 /// GMRES or the bounce series through any operator (`Solve::Direct` needs the matrix).
 fn solve_with<O: solver::Operator>(
     op: &O,
@@ -807,14 +901,86 @@ pub const BRIGHT_DENSE_MAX: usize = 8_000;
 pub const BRIGHT_AMPLIFICATION: f64 = 100.0;
 
 /// An upper bound on every element's reflectance before meshing: the largest ρ factor of the
-/// materials the polygons use (textures and `COLOR_0` only multiply it by values ≤ 1).
-fn scene_rho_bound(scene: &Scene) -> f64 {
+/// materials the polygons use (textures and `COLOR_0` only multiply it by values ≤ 1), with
+/// ρ ≥ 1 lowered to `max_reflectance` as [`limit_reflectance`] will.
+fn scene_rho_bound(scene: &Scene, max_reflectance: f64) -> f64 {
     scene
         .polygons
         .iter()
         .filter_map(|p| scene.materials.get(p.material))
         .flat_map(|m| m.rho)
+        .map(|r| {
+            if r >= REFLECTS_ALL {
+                max_reflectance
+            } else {
+                r
+            }
+        })
         .fold(0.0f64, f64::max)
+}
+
+/// A reflectance this close to 1 is 1: a white texture's exact mean over an element rounds to
+/// 1 − 1.1e-16, and no authored value lies between this and 1 (an MTL or glTF colour is
+/// written with at most ~9 significant digits).
+pub const REFLECTS_ALL: f64 = 1.0 - 1e-12;
+
+/// Lowers every element reflectance at or above 1 to `max_reflectance` (`--max-reflectance`):
+/// ρ = 1 reflects all light, which no surface does, and leaves `(I − ρF) b = e` without a
+/// finite answer in a closed scene (eq. 7's Neumann series needs ρ F to shrink). Values below
+/// 1 stay as authored. Decided from the input alone, before any form factor or link; one
+/// warning names the materials (glTF's default material, a white texture on a white base
+/// colour). `None` when nothing was lowered.
+fn limit_reflectance(
+    scene: &Scene,
+    mesh: &ElementMesh,
+    rho: &mut [[f64; BANDS]],
+    max_reflectance: f64,
+) -> Option<String> {
+    if max_reflectance >= 1.0 {
+        return None;
+    }
+    let mut lowered = vec![0usize; scene.materials.len()];
+    for (el, r) in mesh.elements.iter().zip(rho.iter_mut()) {
+        if r.iter().any(|&v| v >= REFLECTS_ALL) {
+            for v in r.iter_mut().filter(|v| **v >= REFLECTS_ALL) {
+                *v = max_reflectance;
+            }
+            let material = scene.polygons[el.polygon as usize].material;
+            if let Some(count) = lowered.get_mut(material) {
+                *count += 1;
+            }
+        }
+    }
+    let named: Vec<String> = lowered
+        .iter()
+        .enumerate()
+        .filter(|(_, &count)| count > 0)
+        .map(|(k, &count)| {
+            let name = match scene.materials[k].name.as_deref() {
+                Some(name) => format!("material {name:?} ({k})"),
+                None => format!("material {k}"),
+            };
+            format!(
+                "{name}: {count} element{}",
+                if count == 1 { "" } else { "s" }
+            )
+        })
+        .collect();
+    if named.is_empty() {
+        return None;
+    }
+    const SHOWN: usize = 8;
+    let more = if named.len() > SHOWN {
+        format!(" and {} more materials", named.len() - SHOWN)
+    } else {
+        String::new()
+    };
+    Some(format!(
+        "reflectance rho = 1 (all light reflected: no real surface, and no finite answer in a \
+         closed scene) lowered to --max-reflectance {max_reflectance} on {}{more}; glTF's \
+         default material and white textures on a white base colour have rho = 1",
+        named[..named.len().min(SHOWN)].join(", ")
+    ))
 }
 
 /// Which transport `settings` asks for on a scene of `n` elements whose reflectances are at

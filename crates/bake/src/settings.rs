@@ -103,7 +103,16 @@ pub struct Request {
     /// `--max-elements`: the element budget of refinement ([`Settings::element_budget`]'s
     /// default when `None`).
     pub max_elements: Option<u64>,
+    /// `--max-reflectance`: reflectances at or above 1 are lowered to this
+    /// ([`DEFAULT_MAX_REFLECTANCE`] when `None`).
+    pub max_reflectance: Option<f64>,
 }
+
+/// The reflectance a ρ ≥ 1 (glTF's default material, a white texture on a white factor) is
+/// lowered to when `--max-reflectance` is not given: below what the draft preset's accuracy
+/// can solve (its condition bound (1 + ρ)/(1 − ρ) is 99 here, against ∞ at ρ = 1), and a
+/// bright white paint's albedo.
+pub const DEFAULT_MAX_REFLECTANCE: f64 = 0.98;
 
 impl Default for Request {
     /// `bake IN OUT` with no options.
@@ -129,6 +138,7 @@ impl Default for Request {
             load_links: None,
             refine: None,
             max_elements: None,
+            max_reflectance: None,
         }
     }
 }
@@ -189,6 +199,9 @@ pub struct Settings {
     /// ([`crate::refine::MAX_LEVELS`]; `tools/accuracy-report` lowers it so that its
     /// reference mesh resolves every refined element).
     pub refine_levels: u8,
+    /// Element reflectances at or above 1 are lowered to this (`--max-reflectance`, in
+    /// (0, 1]; 1 keeps them, and the solver then refuses a closed scene with an emitter).
+    pub max_reflectance: f64,
 }
 
 impl Settings {
@@ -268,6 +281,13 @@ impl Settings {
                     .into(),
             ));
         }
+        if let Some(r) = request.max_reflectance {
+            if !(r.is_finite() && r > 0.0 && r <= 1.0) {
+                return Err(BakeError::Options(format!(
+                    "--max-reflectance must be a reflectance in (0, 1], got {r}"
+                )));
+            }
+        }
         if request.max_elements == Some(0) {
             return Err(BakeError::Options(
                 "--max-elements must be at least 1".into(),
@@ -321,6 +341,7 @@ impl Settings {
                 || request.max_elements.is_some(),
             max_elements: request.max_elements,
             refine_levels: crate::refine::MAX_LEVELS,
+            max_reflectance: request.max_reflectance.unwrap_or(DEFAULT_MAX_REFLECTANCE),
         })
     }
 
@@ -391,6 +412,7 @@ impl Settings {
             "load_links": self.load_links.as_ref().map(|p| p.to_string_lossy().into_owned()),
             "refine": self.refine,
             "max_elements": self.max_elements,
+            "max_reflectance": self.max_reflectance,
         })
     }
 }

@@ -146,6 +146,10 @@ pub struct Counts {
     /// Faces dropped as duplicates of an earlier face (absent in older reports: 0).
     #[serde(default)]
     pub duplicates_dropped: usize,
+    /// Polygons dropped because a polygon of another primitive or node has the same corners
+    /// and facing (absent in older reports: 0).
+    #[serde(default)]
+    pub coincident_dropped: usize,
     /// Faces wound opposite to their neighbours, kept as authored (absent in older
     /// reports: 0).
     #[serde(default)]
@@ -279,9 +283,29 @@ pub struct AccuracyInfo {
     /// relative error of `b` the form factors' accuracy can cause (`null` when the band was
     /// not solved as a linear system).
     pub error_bound: [Option<f64>; 3],
+    /// Dense transport: the form factors' row sums before and after rows past 1 were scaled
+    /// to 1 (absent on other transports and in older reports).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub row_sums: Option<RowSumsInfo>,
     /// The elements' error estimates summarised (absent in older reports).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<ErrorSummary>,
+}
+
+/// The dense form factors' row sums Σ_j F_ij: no element sends more than all its light, so
+/// rows past 1 (coincident or interpenetrating surfaces seen twice) were scaled to 1,
+/// reciprocity kept.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RowSumsInfo {
+    /// The largest row sum as integrated.
+    pub largest_before: f64,
+    /// The largest row sum the solver was given.
+    pub largest_after: f64,
+    /// Rows scaled to 1.
+    pub scaled: usize,
+    /// Of those, rows past 1 + 5% (or `row_sum_accuracy`, when larger): surfaces seen
+    /// twice, not integration or sampling error (a warning names their polygons).
+    pub seen_twice: usize,
 }
 
 /// The per-element error estimates of a bake, per band: largest, area-weighted RMS, where the
@@ -529,6 +553,7 @@ impl Counts {
             ngons_split: stats.ngons_split,
             faces_read: stats.faces_read,
             duplicates_dropped: stats.duplicates_dropped,
+            coincident_dropped: stats.coincident_dropped,
             against_winding: stats.against_winding,
             ..Counts::default()
         }

@@ -68,6 +68,7 @@ fn report_holds_the_scene_and_results() {
             ngons_split: 0,
             faces_read: 12,
             duplicates_dropped: 2,
+            coincident_dropped: 0,
             against_winding: 3,
             pairs_tested: 0,
             pairs_occludable: 0,

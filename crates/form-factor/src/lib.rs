@@ -605,6 +605,78 @@ impl DenseFormFactors {
     pub fn row_sums(&self) -> Vec<f64> {
         (0..self.n).map(|i| self.row(i).iter().sum()).collect()
     }
+
+    /// Scales down every row that sums past 1 so that it sums to 1, keeping reciprocity;
+    /// reports the rows that were past `1 + margin` (a margin above what integration and
+    /// visibility sampling can explain).
+    ///
+    /// No element can send more than all its light (eq. 15: Σ_j F_ij ≤ 1), but real geometry
+    /// can make the integrated rows sum past 1: coincident faces facing the same way are both
+    /// seen in full (neither hides the other), and faces inside or through other solids see
+    /// surfaces twice. Such rows create light, and with ρ near 1 the system `(I − ρF) b = e`
+    /// has no meaningful answer. With `s_i = 1 / Σ_j F_ij` on rows past 1 and 1 elsewhere,
+    /// `F'_ij = F_ij · min(s_i, s_j)` keeps `A_i F'_ij = A_j F'_ji` (eq. 14; `min` is
+    /// symmetric) and bounds every row: `Σ_j F'_ij ≤ s_i Σ_j F_ij`, which is 1 on a scaled row
+    /// and the unchanged sum (≤ 1) on any other. Rows of a closed enclosure that integration
+    /// put a rounding above 1 move by that rounding; every element's escape `1 − Σ_j F_ij`
+    /// is then ≥ 0.
+    pub fn limit_row_sums(&mut self, margin: f64) -> RowSumLimit {
+        let n = self.n;
+        let sums: Vec<f64> = self
+            .data
+            .par_chunks(n.max(1))
+            .map(|row| row.iter().sum())
+            .collect();
+        let limit = 1.0 + margin.max(0.0);
+        let beyond_margin: Vec<(usize, f64)> = sums
+            .iter()
+            .enumerate()
+            .filter(|(_, &s)| s > limit)
+            .map(|(i, &s)| (i, s))
+            .collect();
+        let scaled = sums.iter().filter(|&&s| s > 1.0).count();
+        let largest = sums.iter().copied().fold(0.0f64, f64::max);
+        let mut largest_after = largest;
+        if scaled > 0 {
+            let scale: Vec<f64> = sums
+                .iter()
+                .map(|&s| if s > 1.0 { 1.0 / s } else { 1.0 })
+                .collect();
+            self.data
+                .par_chunks_mut(n)
+                .zip(&scale)
+                .for_each(|(row, &si)| {
+                    for (f, &sj) in row.iter_mut().zip(&scale) {
+                        *f *= si.min(sj);
+                    }
+                });
+            largest_after = self
+                .data
+                .par_chunks(n)
+                .map(|row| row.iter().sum::<f64>())
+                .reduce(|| 0.0, f64::max);
+        }
+        RowSumLimit {
+            scaled,
+            largest,
+            largest_after,
+            beyond_margin,
+        }
+    }
+}
+
+/// What [`DenseFormFactors::limit_row_sums`] changed.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RowSumLimit {
+    /// Rows that summed past 1 and were scaled to 1.
+    pub scaled: usize,
+    /// The largest row sum before scaling.
+    pub largest: f64,
+    /// The largest row sum after (≤ 1 up to rounding).
+    pub largest_after: f64,
+    /// Of those, the rows past 1 + the margin (row, sum before scaling), in row order:
+    /// geometry that sees surfaces twice, not integration or sampling error.
+    pub beyond_margin: Vec<(usize, f64)>,
 }
 
 /// Exact form factor between two convex planar polygons given as vertex lists

@@ -16,6 +16,7 @@ use glam::{DMat4, DVec3};
 use std::path::{Path, PathBuf};
 
 mod accessor;
+mod coincident;
 mod files;
 mod gltf_in;
 mod obj_in;
@@ -282,6 +283,9 @@ pub struct ImportStats {
     pub duplicates_dropped: usize,
     /// Faces wound opposite to their neighbours (kept as authored; see [`load`]).
     pub against_winding: usize,
+    /// Polygons dropped because an earlier polygon of another primitive or node has the same
+    /// corners in the same cyclic order (coincident, facing the same way; see [`load`]).
+    pub coincident_dropped: usize,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -401,7 +405,11 @@ pub enum ImportError {
 ///    order reversed, so every polygon is counter-clockwise about its Newell normal,
 ///    which points to the front;
 /// 7. a double-sided material adds, right after each front polygon, a [`Side::Back`]
-///    polygon with reversed vertices and negated normal.
+///    polygon with reversed vertices and negated normal;
+/// 8. across the whole scene, a polygon with the same corners (within 1e-9 × scene size) in
+///    the same cyclic order as an earlier polygon of another primitive or node (coincident
+///    and facing the same way: both would be seen in full, counting their light twice) is
+///    dropped, the first kept ([`ImportStats::coincident_dropped`], one warning).
 ///
 /// No polygon left is [`ImportError::Empty`].
 ///
@@ -427,6 +435,7 @@ pub fn load_with(path: &Path, options: &Options) -> Result<Scene, ImportError> {
         Some("obj") => obj_in::load(path, &files),
         _ => Err(ImportError::UnsupportedExtension),
     }?;
+    coincident::drop_coincident(&mut scene);
     scene.input_files = files.into_read();
     Ok(scene)
 }
@@ -445,15 +454,19 @@ pub enum Format {
 /// an external one is an [`ImportError::Gltf`]), and an OBJ's `mtllib` is missing (its
 /// faces use the default grey, with a warning).
 pub fn load_bytes(bytes: &[u8], format: Format) -> Result<Scene, ImportError> {
-    match format {
+    let mut scene = match format {
         Format::Gltf => gltf_in::load_bytes(bytes, None),
         Format::Obj => obj_in::load_bytes(bytes, None),
-    }
+    }?;
+    coincident::drop_coincident(&mut scene);
+    Ok(scene)
 }
 
 /// Reads OBJ text from memory with one material library: every `mtllib` line reads `mtl`.
 pub fn load_obj_bytes(obj: &[u8], mtl: Option<&[u8]>) -> Result<Scene, ImportError> {
-    obj_in::load_bytes(obj, mtl)
+    let mut scene = obj_in::load_bytes(obj, mtl)?;
+    coincident::drop_coincident(&mut scene);
+    Ok(scene)
 }
 
 /// The fuzz targets' harnesses (`fuzz/`), here so that the regression test replays a

@@ -68,6 +68,7 @@ pub fn fixture() -> Fixture {
             ngons_split: 0,
             duplicates_dropped: 2,
             against_winding: 3,
+            coincident_dropped: 0,
         },
         warnings: vec!["mesh \"lines\": primitive 0 skipped (mode LINES)".into()],
         input_files: Vec::new(),
