@@ -16,8 +16,11 @@ use glam::{DMat4, DVec3};
 use std::path::{Path, PathBuf};
 
 mod accessor;
+mod compressed;
+mod draco;
 mod files;
 mod gltf_in;
+mod meshopt;
 mod obj_in;
 mod obj_texture;
 mod polygon;

@@ -270,7 +270,7 @@ impl Loader<'_> {
                 ([wrap(&sampler.wrap_s), wrap(&sampler.wrap_t)], nearest)
             }
         };
-        let source = json.source.value();
+        let source = crate::compressed::texture_source(self.root, json).map_err(&fail)?;
         let image = match self.image_of.get(&source) {
             Some(&k) => k,
             None => {
@@ -330,8 +330,9 @@ impl Loader<'_> {
                         .map(Some),
                 };
                 let name = json.name.clone();
-                let source = json.source.value();
+                let source = crate::compressed::texture_source(self.root, json);
                 sampler.and_then(|sampler| {
+                    let source = source?;
                     let image = self.authored_image(source)?;
                     self.authored.textures.push(AuthoredTexture {
                         name,
