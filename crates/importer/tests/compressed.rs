@@ -4,6 +4,8 @@
 //! installed) load to the same polygons as the uncompressed files, within the quantisation
 //! step.
 
+mod draco_writer;
+
 use bake_importer::{load, Scene};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -68,124 +70,6 @@ fn extent(scene: &Scene) -> f64 {
     (hi - lo).max_element()
 }
 
-/// Writes `name` (a fixture whose geometry is in one external .bin) into `dir` with every
-/// triangle primitive's POSITION and indices Draco-compressed (positions quantised to
-/// `bits` bits; `speed` 10 is sequential coding, lower speeds edgebreaker). The Draco
-/// attribute of the positions is given unique id 1 (a NORMAL is attribute 0), so a reader
-/// that went by attribute order would read the normals.
-fn write_draco(name: &str, dir: &Path, bits: i32, speed: i32) -> PathBuf {
-    use draco_core::{
-        DataType, EncoderBuffer, EncoderOptions, GeometryAttributeType, Mesh, MeshEncoder,
-        PointAttribute, PointIndex,
-    };
-    let source = fixture(name);
-    let (document, buffers, _) = gltf::import(&source).expect("fixture loads");
-    let mut json: Value =
-        serde_json::from_slice(&std::fs::read(&source).unwrap()).expect("fixture JSON");
-    for b in json["buffers"].as_array().unwrap() {
-        let uri = b["uri"].as_str().expect("external buffer");
-        std::fs::copy(source.with_file_name(uri), dir.join(uri)).unwrap();
-    }
-    let draco_buffer = json["buffers"].as_array().unwrap().len();
-    let mut blob: Vec<u8> = Vec::new();
-    for mesh in document.meshes() {
-        for primitive in mesh.primitives() {
-            let reader = primitive.reader(|b| Some(&buffers[b.index()]));
-            let positions: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
-            let indices: Vec<u32> = match reader.read_indices() {
-                Some(i) => i.into_u32().collect(),
-                None => (0..positions.len() as u32).collect(),
-            };
-            let n = positions.len();
-            let mut draco = Mesh::new();
-            let mut normal = PointAttribute::new();
-            normal.init(
-                GeometryAttributeType::Normal,
-                3,
-                DataType::Float32,
-                false,
-                n,
-            );
-            for i in 0..n {
-                normal
-                    .buffer_mut()
-                    .write(i * 12, &[0.0f32, 0.0, 1.0].map(f32::to_le_bytes).concat());
-            }
-            let normal_id = draco.add_attribute(normal);
-            let mut position = PointAttribute::new();
-            position.init(
-                GeometryAttributeType::Position,
-                3,
-                DataType::Float32,
-                false,
-                n,
-            );
-            for (i, p) in positions.iter().enumerate() {
-                position
-                    .buffer_mut()
-                    .write(i * 12, &p.map(f32::to_le_bytes).concat());
-            }
-            let position_id = draco.add_attribute(position);
-            for t in indices.chunks_exact(3) {
-                draco.add_face([PointIndex(t[0]), PointIndex(t[1]), PointIndex(t[2])]);
-            }
-            let unique = |id: i32| draco.attribute(id).unique_id();
-            let (normal_unique, position_unique) = (unique(normal_id), unique(position_id));
-            assert_eq!((normal_unique, position_unique), (0, 1));
-            let mut options = EncoderOptions::new();
-            options.set_attribute_int(position_id, "quantization_bits", bits);
-            options.set_global_int("encoding_speed", speed);
-            options.set_global_int("decoding_speed", speed);
-            let mut encoder = MeshEncoder::new();
-            encoder.set_mesh(draco);
-            let mut out = EncoderBuffer::new();
-            encoder.encode(&options, &mut out).expect("Draco encode");
-
-            let view = json["bufferViews"].as_array().unwrap().len();
-            json["bufferViews"].as_array_mut().unwrap().push(json!({
-                "buffer": draco_buffer, "byteOffset": blob.len(), "byteLength": out.data().len()
-            }));
-            blob.extend_from_slice(out.data());
-            while blob.len() % 4 != 0 {
-                blob.push(0);
-            }
-            // The primitive's own accessors keep count, type and bounds only.
-            let old =
-                &json["accessors"][primitive.get(&gltf::Semantic::Positions).unwrap().index()];
-            let position_accessor = json!({
-                "componentType": 5126, "count": n, "type": "VEC3",
-                "min": old["min"].clone(), "max": old["max"].clone()
-            });
-            let accessors = json["accessors"].as_array_mut().unwrap();
-            accessors.push(position_accessor);
-            accessors
-                .push(json!({"componentType": 5125, "count": indices.len(), "type": "SCALAR"}));
-            let count = accessors.len();
-            let p = &mut json["meshes"][mesh.index()]["primitives"][primitive.index()];
-            p["attributes"] = json!({ "POSITION": count - 2 });
-            p["indices"] = json!(count - 1);
-            p["extensions"] = json!({ "KHR_draco_mesh_compression": {
-                "bufferView": view,
-                "attributes": { "POSITION": position_unique }
-            }});
-        }
-    }
-    std::fs::write(dir.join("draco.bin"), &blob).unwrap();
-    json["buffers"]
-        .as_array_mut()
-        .unwrap()
-        .push(json!({"uri": "draco.bin", "byteLength": blob.len()}));
-    for key in ["extensionsUsed", "extensionsRequired"] {
-        let list = json[key].as_array().cloned().unwrap_or_default();
-        let mut list: Vec<Value> = list;
-        list.push(json!("KHR_draco_mesh_compression"));
-        json[key] = Value::Array(list);
-    }
-    let path = dir.join(format!("draco-{name}"));
-    std::fs::write(&path, serde_json::to_vec_pretty(&json).unwrap()).unwrap();
-    path
-}
-
 #[test]
 fn draco_fixtures_decode_to_the_uncompressed_polygons() {
     for name in ["cube.gltf", "cornell.gltf", "two-rooms.gltf"] {
@@ -193,7 +77,7 @@ fn draco_fixtures_decode_to_the_uncompressed_polygons() {
         let step = extent(&original) / f64::from((1 << 14) - 1);
         for speed in [10, 5] {
             let dir = tempfile::tempdir().unwrap();
-            let path = write_draco(name, dir.path(), 14, speed);
+            let path = draco_writer::write_draco(&fixture(name), dir.path(), 14, speed);
             let decoded = load(&path).unwrap_or_else(|e| panic!("{name} speed {speed}: {e}"));
             // Draco rounds each coordinate to the nearest of 2^14 levels over the box:
             // within half a step per axis.
@@ -212,14 +96,20 @@ fn draco_without_quantisation_is_exact() {
     let dir = tempfile::tempdir().unwrap();
     let original = load(&fixture("cornell.gltf")).unwrap();
     // 30 bits: below f32's own precision over the Cornell box's 559 units.
-    let decoded = load(&write_draco("cornell.gltf", dir.path(), 30, 10)).unwrap();
+    let decoded = load(&draco_writer::write_draco(
+        &fixture("cornell.gltf"),
+        dir.path(),
+        30,
+        10,
+    ))
+    .unwrap();
     assert!(max_deviation(&original, &decoded, 1e-4) <= 1e-4);
 }
 
 #[test]
 fn a_corrupt_draco_stream_is_one_error_line() {
     let dir = tempfile::tempdir().unwrap();
-    let path = write_draco("cube.gltf", dir.path(), 14, 10);
+    let path = draco_writer::write_draco(&fixture("cube.gltf"), dir.path(), 14, 10);
     let mut bytes = std::fs::read(dir.path().join("draco.bin")).unwrap();
     for b in bytes.iter_mut().skip(8) {
         *b = 0xff;
@@ -233,7 +123,7 @@ fn a_corrupt_draco_stream_is_one_error_line() {
 #[test]
 fn an_unknown_required_extension_is_still_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
-    let path = write_draco("cube.gltf", dir.path(), 14, 10);
+    let path = draco_writer::write_draco(&fixture("cube.gltf"), dir.path(), 14, 10);
     let mut json: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
     json["extensionsRequired"]
         .as_array_mut()
