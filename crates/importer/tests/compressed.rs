@@ -4,6 +4,7 @@
 //! installed) load to the same polygons as the uncompressed files, within the quantisation
 //! step.
 
+mod common;
 mod draco_writer;
 
 use bake_importer::{load, Scene};
@@ -192,5 +193,78 @@ fn meshopt_fixtures_decode_to_the_uncompressed_polygons() {
             let worst = max_deviation(&original, &decoded, step * 3f64.sqrt());
             eprintln!("{name} {file}: max deviation {worst:.3e} (step {step:.3e})");
         }
+    }
+}
+
+/// A textured unit square whose base colour texture carries `extension` (KTX2 or WebP image
+/// 1), with `fallback` a PNG `source` (image 0) or none; the extension is required.
+fn textured_square(extension: &str, fallback: bool) -> common::GltfBuilder {
+    let mut b = common::GltfBuilder::new();
+    let square = [[0f32, 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]];
+    let position = b.positions(&square);
+    let uv: Vec<u8> = [[0f32, 0.], [1., 0.], [1., 1.], [0., 1.]]
+        .iter()
+        .flatten()
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    let uv = b.accessor(&uv, common::FLOAT, "VEC2", 4, json!({}));
+    let indices = b.indices(&[0, 1, 2, 0, 2, 3]);
+    let material = b.material(json!({
+        "name": "Painted",
+        "pbrMetallicRoughness": { "baseColorTexture": { "index": 0 } }
+    }));
+    let mesh = b.mesh(
+        "Square",
+        vec![json!({
+            "attributes": { "POSITION": position, "TEXCOORD_0": uv },
+            "indices": indices, "material": material
+        })],
+    );
+    let node = b.node(json!({ "mesh": mesh }));
+    b.scene(&[node]);
+    let mut png = Vec::new();
+    image::DynamicImage::ImageRgb8(image::RgbImage::from_pixel(2, 2, image::Rgb([200, 30, 30])))
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    let png = format!("data:image/png;base64,{}", common::base64(&png));
+    b.root["images"] = json!([{ "uri": png }, { "uri": "data:image/ktx2;base64,AAAA" }]);
+    let mut texture = json!({ "name": "Paint", "extensions": { extension: { "source": 1 } } });
+    if fallback {
+        texture["source"] = json!(0);
+    }
+    b.root["textures"] = json!([texture]);
+    b.root["extensionsUsed"] = json!([extension]);
+    b.root["extensionsRequired"] = json!([extension]);
+    b
+}
+
+#[test]
+fn a_texture_without_a_png_or_jpeg_fallback_is_refused_by_extension() {
+    for extension in ["KHR_texture_basisu", "EXT_texture_webp"] {
+        let dir = tempfile::tempdir().unwrap();
+        let path = textured_square(extension, false).write_embedded(&dir.path().join("s.gltf"));
+        let started = std::time::Instant::now();
+        let error = load(&path).unwrap_err().to_string();
+        assert!(started.elapsed().as_secs_f64() < 0.5);
+        eprintln!("{error}");
+        assert!(
+            error.contains(extension) && error.contains("Paint"),
+            "{error}"
+        );
+        assert!(!error.contains('\n'), "{error}");
+    }
+}
+
+#[test]
+fn a_texture_with_a_png_fallback_uses_it() {
+    for extension in ["KHR_texture_basisu", "EXT_texture_webp"] {
+        let dir = tempfile::tempdir().unwrap();
+        let path = textured_square(extension, true).write_embedded(&dir.path().join("s.gltf"));
+        let scene = load(&path).unwrap_or_else(|e| panic!("{extension}: {e}"));
+        assert_eq!(scene.polygons.len(), 1);
+        assert_eq!(scene.textures.len(), 1);
+        assert!(scene.materials[0].base_color_texture.is_some());
+        assert_eq!(scene.authored.images.len(), 1);
+        assert_eq!(scene.authored.images[0].mime_type, "image/png");
     }
 }
