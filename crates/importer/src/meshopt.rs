@@ -313,6 +313,38 @@ mod tests {
     }
 
     #[test]
+    fn exponential_and_octahedral_filters_are_applied() {
+        // EXPONENTIAL (README, "Filters"): positions as 2^e·m with 15-bit mantissas.
+        let positions: Vec<[f32; 3]> = (0..20)
+            .map(|i| [i as f32 * 13.7, -(i as f32) * 0.031, 559.2 - i as f32])
+            .collect();
+        let filtered =
+            ::meshopt::encode_filter_exp(&positions, 15, ::meshopt::EncodeExpMode::Separate);
+        let encoded = ::meshopt::encode_vertex_buffer(&filtered).unwrap();
+        let ext = view(12, 20, "ATTRIBUTES", "EXPONENTIAL", encoded.len());
+        let out = decode_view(&ext, &[Data(encoded)]).unwrap();
+        for (p, c) in positions.iter().flatten().zip(out.chunks_exact(4)) {
+            let got = f32::from_le_bytes([c[0], c[1], c[2], c[3]]);
+            assert!(
+                (got - p).abs() <= p.abs() * 2f32.powi(-14) + 1e-6,
+                "{got} vs {p}"
+            );
+        }
+        // OCTAHEDRAL: unit normals as 8-bit snorm.
+        let normals: Vec<[f32; 4]> = vec![[0.0, 1.0, 0.0, 0.0], [0.6, 0.0, -0.8, 0.0]];
+        let filtered: Vec<[i8; 4]> = ::meshopt::encode_filter_oct(&normals, 8);
+        let encoded = ::meshopt::encode_vertex_buffer(&filtered).unwrap();
+        let ext = view(4, 2, "ATTRIBUTES", "OCTAHEDRAL", encoded.len());
+        let out = decode_view(&ext, &[Data(encoded)]).unwrap();
+        for (n, c) in normals.iter().zip(out.chunks_exact(4)) {
+            for k in 0..3 {
+                let got = f32::from(c[k] as i8) / 127.0;
+                assert!((got - n[k]).abs() < 0.03, "{got} vs {}", n[k]);
+            }
+        }
+    }
+
+    #[test]
     fn malformed_and_oversized_views_are_errors_not_panics() {
         let ext = view(12, 10, "ATTRIBUTES", "NONE", 4);
         assert!(decode_view(&ext, &[Data(vec![0xa0, 1, 2, 3])]).is_err());
