@@ -345,6 +345,42 @@ mod tests {
     }
 
     #[test]
+    fn mutated_streams_decode_or_fail_without_panicking() {
+        let vertices: Vec<[f32; 3]> = (0..40).map(|i| [i as f32, 1.5, -(i as f32)]).collect();
+        let indices: Vec<u32> = (0..38).flat_map(|i| [i, i + 1, i + 2]).collect();
+        let streams = [
+            (
+                ::meshopt::encode_vertex_buffer(&vertices).unwrap(),
+                12,
+                40,
+                "ATTRIBUTES",
+            ),
+            (
+                ::meshopt::encode_index_buffer(&indices, 40).unwrap(),
+                4,
+                114,
+                "TRIANGLES",
+            ),
+            (
+                ::meshopt::encode_index_sequence(&indices, 40).unwrap(),
+                4,
+                114,
+                "INDICES",
+            ),
+        ];
+        for (encoded, stride, count, mode) in streams {
+            for at in 0..encoded.len() {
+                for value in [0x00, 0x5a, 0xff] {
+                    let mut bytes = encoded.clone();
+                    bytes[at] = value;
+                    let ext = view(stride, count, mode, "NONE", bytes.len());
+                    let _ = decode_view(&ext, &[Data(bytes)]);
+                }
+            }
+        }
+    }
+
+    #[test]
     fn malformed_and_oversized_views_are_errors_not_panics() {
         let ext = view(12, 10, "ATTRIBUTES", "NONE", 4);
         assert!(decode_view(&ext, &[Data(vec![0xa0, 1, 2, 3])]).is_err());

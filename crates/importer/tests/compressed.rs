@@ -268,3 +268,26 @@ fn a_texture_with_a_png_fallback_uses_it() {
         assert_eq!(scene.authored.images[0].mime_type, "image/png");
     }
 }
+
+#[test]
+fn mutated_draco_streams_fail_without_panicking() {
+    // Every byte of a Draco stream overwritten in turn with three values: each load
+    // returns (Ok or a one-line error); none panics or hangs.
+    let dir = tempfile::tempdir().unwrap();
+    let path = draco_writer::write_draco(&fixture("cornell.gltf"), dir.path(), 14, 5);
+    let bin = dir.path().join("draco.bin");
+    let original = std::fs::read(&bin).unwrap();
+    let mut errors = 0;
+    for at in (0..original.len()).step_by(3) {
+        for value in [0x00, 0x7f, 0xff] {
+            let mut bytes = original.clone();
+            bytes[at] = value;
+            std::fs::write(&bin, &bytes).unwrap();
+            if let Err(e) = load(&path) {
+                assert!(!e.to_string().contains('\n'), "{e}");
+                errors += 1;
+            }
+        }
+    }
+    assert!(errors > 0);
+}
