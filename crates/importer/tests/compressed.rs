@@ -196,17 +196,17 @@ fn meshopt_fixtures_decode_to_the_uncompressed_polygons() {
     }
 }
 
+/// The textured square's texture coordinates (unlike its positions, so a reader that took
+/// one attribute for the other would be caught).
+const UVS: [[f32; 2]; 4] = [[0.1, 0.2], [0.9, 0.2], [0.9, 0.7], [0.1, 0.7]];
+
 /// A textured unit square whose base colour texture carries `extension` (KTX2 or WebP image
 /// 1), with `fallback` a PNG `source` (image 0) or none; the extension is required.
 fn textured_square(extension: &str, fallback: bool) -> common::GltfBuilder {
     let mut b = common::GltfBuilder::new();
     let square = [[0f32, 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]];
     let position = b.positions(&square);
-    let uv: Vec<u8> = [[0f32, 0.], [1., 0.], [1., 1.], [0., 1.]]
-        .iter()
-        .flatten()
-        .flat_map(|f| f.to_le_bytes())
-        .collect();
+    let uv: Vec<u8> = UVS.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
     let uv = b.accessor(&uv, common::FLOAT, "VEC2", 4, json!({}));
     let indices = b.indices(&[0, 1, 2, 0, 2, 3]);
     let material = b.material(json!({
@@ -290,4 +290,99 @@ fn mutated_draco_streams_fail_without_panicking() {
         }
     }
     assert!(errors > 0);
+}
+
+#[test]
+fn draco_texture_coordinates_come_from_the_attribute_the_extension_names() {
+    use draco_core::{
+        DataType, EncoderBuffer, EncoderOptions, GeometryAttributeType, Mesh, MeshEncoder,
+        PointAttribute, PointIndex,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let b = textured_square("KHR_texture_basisu", true);
+    let plain = load(&b.write_embedded(&dir.path().join("plain.gltf"))).unwrap();
+
+    // The same square, Draco-compressed: TEXCOORD_0 is attribute 0 and POSITION attribute
+    // 1 in the stream, with 12-bit texture coordinates.
+    let square = [[0f32, 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]];
+    let mut mesh = Mesh::new();
+    let mut uv = PointAttribute::new();
+    uv.init(
+        GeometryAttributeType::TexCoord,
+        2,
+        DataType::Float32,
+        false,
+        4,
+    );
+    for (i, t) in UVS.iter().enumerate() {
+        uv.buffer_mut()
+            .write(i * 8, &t.map(f32::to_le_bytes).concat());
+    }
+    let uv_id = mesh.add_attribute(uv);
+    let mut position = PointAttribute::new();
+    position.init(
+        GeometryAttributeType::Position,
+        3,
+        DataType::Float32,
+        false,
+        4,
+    );
+    for (i, p) in square.iter().enumerate() {
+        position
+            .buffer_mut()
+            .write(i * 12, &p.map(f32::to_le_bytes).concat());
+    }
+    let position_id = mesh.add_attribute(position);
+    for t in [[0, 1, 2], [0, 2, 3]] {
+        mesh.add_face(t.map(PointIndex));
+    }
+    let mut options = EncoderOptions::new();
+    options.set_attribute_int(position_id, "quantization_bits", 14);
+    options.set_attribute_int(uv_id, "quantization_bits", 12);
+    options.set_global_int("encoding_speed", 10);
+    let mut encoder = MeshEncoder::new();
+    encoder.set_mesh(mesh);
+    let mut out = EncoderBuffer::new();
+    encoder.encode(&options, &mut out).unwrap();
+
+    let mut b = b;
+    let view = b.view(out.data());
+    let accessors = b.root["accessors"].as_array_mut().unwrap();
+    accessors.push(json!({"componentType": 5126, "count": 4, "type": "VEC3",
+                          "min": [0, 0, 0], "max": [1, 1, 0]}));
+    accessors.push(json!({"componentType": 5126, "count": 4, "type": "VEC2"}));
+    accessors.push(json!({"componentType": 5125, "count": 6, "type": "SCALAR"}));
+    let n = accessors.len();
+    let primitive = &mut b.root["meshes"][0]["primitives"][0];
+    primitive["attributes"] = json!({ "POSITION": n - 3, "TEXCOORD_0": n - 2 });
+    primitive["indices"] = json!(n - 1);
+    primitive["extensions"] = json!({ "KHR_draco_mesh_compression": {
+        "bufferView": view, "attributes": { "POSITION": 1, "TEXCOORD_0": 0 }
+    }});
+    b.root["extensionsRequired"] = json!(["KHR_texture_basisu", "KHR_draco_mesh_compression"]);
+    let draco = load(&b.write_embedded(&dir.path().join("draco.gltf"))).unwrap();
+
+    assert_eq!(max_deviation(&plain, &draco, 1e-4), 0.0);
+    let corners = |s: &Scene| -> Vec<(glam::DVec3, glam::DVec2)> {
+        let mut v: Vec<_> = s.uvs[0]
+            .as_ref()
+            .expect("a textured polygon")
+            .triangles
+            .iter()
+            .flat_map(|t| (0..3).map(|k| (t.positions[k], t.uv[0][k])))
+            .collect();
+        v.sort_by(|a, b| a.0.to_array().partial_cmp(&b.0.to_array()).unwrap());
+        v
+    };
+    let (a, b) = (corners(&plain), corners(&draco));
+    assert_eq!(a.len(), 6);
+    assert_eq!(a.len(), b.len());
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(x.0, y.0);
+        // Each position has one texture coordinate here; 12 bits over the UVs' range.
+        assert!(
+            (x.1 - y.1).abs().max_element() <= 0.5 / 4095.0,
+            "{x:?} vs {y:?}"
+        );
+    }
 }
