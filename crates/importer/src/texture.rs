@@ -191,6 +191,18 @@ pub(crate) fn load(
             let Some((t, tex_coord, transform)) = reference else {
                 continue;
             };
+            // A KTX2/WebP texture without a PNG/JPEG fallback: named with its material.
+            if let Some(Err(problem)) = root
+                .textures
+                .get(t)
+                .map(|json| crate::compressed::texture_source(root, json))
+            {
+                let material = crate::describe("material", material.name.as_deref(), m);
+                return Err(ImportError::InvalidValue {
+                    what: format!("{} used by {material}", loader.texture_name(t)),
+                    problem,
+                });
+            }
             let texture = loader.decoded_texture(t)?;
             *slot = Some(TextureRef {
                 texture,

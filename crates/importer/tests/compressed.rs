@@ -247,10 +247,9 @@ fn a_texture_without_a_png_or_jpeg_fallback_is_refused_by_extension() {
         let error = load(&path).unwrap_err().to_string();
         assert!(started.elapsed().as_secs_f64() < 0.5);
         eprintln!("{error}");
-        assert!(
-            error.contains(extension) && error.contains("Paint"),
-            "{error}"
-        );
+        assert!(error.contains(extension), "{error}");
+        assert!(error.contains("texture \"Paint\""), "{error}");
+        assert!(error.contains("material \"Painted\""), "{error}");
         assert!(!error.contains('\n'), "{error}");
     }
 }
