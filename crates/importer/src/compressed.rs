@@ -51,18 +51,27 @@ pub(crate) fn decode(root: &mut Root, buffers: &mut Vec<Data>) -> Result<(), Str
 /// `KHR_texture_basisu` or `EXT_texture_webp`, that is the PNG/JPEG fallback); otherwise an
 /// error naming the extension whose image the importer cannot decode.
 pub(crate) fn texture_source(root: &Root, texture: &gltf::json::Texture) -> Result<usize, String> {
-    let source = texture.source.value();
-    if source < root.images.len() {
-        return Ok(source);
+    match undecodable(root, texture) {
+        Some(problem) => Err(problem),
+        None => Ok(texture.source.value()),
+    }
+}
+
+/// Why a texture cannot be sampled, when that is because its only image is KTX2 or WebP
+/// (no `source`, or one that does not exist); `None` otherwise (a missing image without
+/// either extension is reported where the image is read).
+pub(crate) fn undecodable(root: &Root, texture: &gltf::json::Texture) -> Option<String> {
+    if texture.source.value() < root.images.len() {
+        return None;
     }
     let extensions = texture.extensions.as_ref().map(|e| &e.others);
-    for (name, what) in [(BASISU, "KTX2/Basis Universal"), (WEBP, "WebP")] {
-        if extensions.is_some_and(|e| e.contains_key(name)) {
-            return Err(format!(
+    [(BASISU, "KTX2/Basis Universal"), (WEBP, "WebP")]
+        .into_iter()
+        .find(|(name, _)| extensions.is_some_and(|e| e.contains_key(*name)))
+        .map(|(name, what)| {
+            format!(
                 "its image is {what} ({name}), which bake cannot decode, and it has no PNG or \
                  JPEG fallback `source`"
-            ));
-        }
-    }
-    Err(format!("image {source} does not exist"))
+            )
+        })
 }

@@ -192,10 +192,10 @@ pub(crate) fn load(
                 continue;
             };
             // A KTX2/WebP texture without a PNG/JPEG fallback: named with its material.
-            if let Some(Err(problem)) = root
+            if let Some(problem) = root
                 .textures
                 .get(t)
-                .map(|json| crate::compressed::texture_source(root, json))
+                .and_then(|json| crate::compressed::undecodable(root, json))
             {
                 let material = crate::describe("material", material.name.as_deref(), m);
                 return Err(ImportError::InvalidValue {
