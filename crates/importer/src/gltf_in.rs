@@ -36,7 +36,12 @@ pub(crate) fn load_bytes(bytes: &[u8], files: Option<&Files>) -> Result<Scene, I
     validate(&root)?;
     let document = gltf::Document::from_json_without_validation(root);
     check_buffer_uris(&document)?;
-    let buffers = read_buffers(&document, files, blob.map(<[u8]>::to_vec))?;
+    let mut buffers = read_buffers(&document, files, blob.map(<[u8]>::to_vec))?;
+    // Compressed views and primitives become plain ones before any accessor is read.
+    let mut root = document.into_json();
+    crate::compressed::decode(&mut root, &mut buffers)
+        .map_err(|e| ImportError::Gltf(one_line(&e)))?;
+    let document = gltf::Document::from_json_without_validation(root);
     build_scene(&document, &buffers, files)
 }
 
@@ -58,6 +63,16 @@ fn read_buffers(
             _ => None,
         };
         let data = match (external, files) {
+            // EXT_meshopt_compression: a fallback buffer has no data to read.
+            _ if document
+                .as_json()
+                .buffers
+                .get(index)
+                .is_some_and(crate::meshopt::is_fallback) =>
+            {
+                buffers.push(gltf::buffer::Data(Vec::new()));
+                continue;
+            }
             (None, _) => gltf::buffer::Data::from_source_and_blob(source, None, &mut blob)
                 .map_err(|e| gltf_error(&e))?,
             (Some(_), None) => {
@@ -174,7 +189,9 @@ fn tolerated(path: &str, error: gltf::json::validation::Error) -> bool {
     let zero_accessor = error == gltf::json::validation::Error::Missing
         && path.starts_with("accessors[")
         && path.ends_with("].bufferView");
-    zero_accessor || UNREAD.iter().any(|object| path.starts_with(object))
+    zero_accessor
+        || UNREAD.iter().any(|object| path.starts_with(object))
+        || crate::compressed::handled_requirement(path, error)
 }
 
 /// One line for a `gltf` error (validation errors list the first and count the rest).

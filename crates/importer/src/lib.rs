@@ -17,8 +17,11 @@ use std::path::{Path, PathBuf};
 
 mod accessor;
 mod coincident;
+mod compressed;
+mod draco;
 mod files;
 mod gltf_in;
+mod meshopt;
 mod obj_in;
 mod obj_texture;
 mod polygon;

@@ -191,6 +191,18 @@ pub(crate) fn load(
             let Some((t, tex_coord, transform)) = reference else {
                 continue;
             };
+            // A KTX2/WebP texture without a PNG/JPEG fallback: named with its material.
+            if let Some(problem) = root
+                .textures
+                .get(t)
+                .and_then(|json| crate::compressed::undecodable(root, json))
+            {
+                let material = crate::describe("material", material.name.as_deref(), m);
+                return Err(ImportError::InvalidValue {
+                    what: format!("{} used by {material}", loader.texture_name(t)),
+                    problem,
+                });
+            }
             let texture = loader.decoded_texture(t)?;
             *slot = Some(TextureRef {
                 texture,
@@ -270,7 +282,7 @@ impl Loader<'_> {
                 ([wrap(&sampler.wrap_s), wrap(&sampler.wrap_t)], nearest)
             }
         };
-        let source = json.source.value();
+        let source = crate::compressed::texture_source(self.root, json).map_err(&fail)?;
         let image = match self.image_of.get(&source) {
             Some(&k) => k,
             None => {
@@ -330,8 +342,9 @@ impl Loader<'_> {
                         .map(Some),
                 };
                 let name = json.name.clone();
-                let source = json.source.value();
+                let source = crate::compressed::texture_source(self.root, json);
                 sampler.and_then(|sampler| {
+                    let source = source?;
                     let image = self.authored_image(source)?;
                     self.authored.textures.push(AuthoredTexture {
                         name,
