@@ -83,11 +83,15 @@ pub(crate) fn drop_coincident(scene: &mut Scene) {
             origin.face
         )
     };
+    let (faces, verb) = if dropped == 1 {
+        ("face coincides", "was")
+    } else {
+        ("faces coincide", "were")
+    };
     scene.warnings.push(format!(
-        "{dropped} face{} coincide with an earlier face facing the same way (same corners) and \
-         were dropped, the first kept: both would be seen in full, counting their light twice \
+        "{dropped} {faces} with an earlier face facing the same way (same corners) and {verb} \
+         dropped, the first kept: both would be seen in full, counting their light twice \
          (e.g. {} duplicates {})",
-        if dropped == 1 { "" } else { "s" },
         describe(later),
         describe(earlier)
     ));

@@ -333,6 +333,20 @@ fn build_scene(
         if !placeable(node, &node_name, &mut warnings)? {
             continue;
         }
+        // Skinning and morph targets move vertices at run time; the bake has one pose.
+        let skinned = root.nodes.get(node_index).is_some_and(|n| n.skin.is_some());
+        let morphed = mesh.primitives.iter().any(|p| p.targets.is_some());
+        if skinned || morphed {
+            warnings.push(format!(
+                "{mesh_name} in {node_name} is {}: baked in its bind pose (the light will not \
+                 follow the animation)",
+                match (skinned, morphed) {
+                    (true, true) => "skinned and has morph targets",
+                    (true, false) => "skinned",
+                    _ => "morphed (morph targets)",
+                }
+            ));
+        }
         for (p, primitive) in mesh.primitives.iter().enumerate() {
             let label = format!("{mesh_name}, primitive {p}");
             let key = (mesh_index, p);

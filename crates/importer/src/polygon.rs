@@ -13,7 +13,9 @@
 //!    into two triangles (warning); a polygon with > 4 vertices is ear-clipped and its
 //!    triangles merged pairwise back into quads where they form planar convex ones;
 //! 5. consecutive source triangles (faces t and t+1) that share an edge, lie in one plane
-//!    and form a strictly convex quad are merged into that quad;
+//!    and form a strictly convex quad are merged into that quad; then source triangles
+//!    still single are paired the same way with a later one across any shared edge
+//!    (greedily in face order: encoders that reorder triangles leave a quad's halves apart);
 //! 6. the normal is computed with Newell's method from the (counter-clockwise) vertices,
 //!    and double-sided materials get a reversed back polygon right after each front one.
 //!
@@ -188,7 +190,8 @@ fn bake_instance(
     let (pieces, merged) = merge_pairs(pieces, tol, |a, b| {
         a.source_triangle && b.source_triangle && a.face + 1 == b.face
     });
-    stats.quads_merged += merged;
+    let (pieces, paired) = pair_by_edges(pieces, tol);
+    stats.quads_merged += merged + paired;
     stats.degenerate_dropped += report.degenerate;
     stats.duplicates_dropped += report.duplicates;
     stats.against_winding += report.against_winding;
@@ -580,6 +583,82 @@ fn merge_pairs(
                     source_triangle: false,
                 });
             }
+            None => out.push(piece),
+        }
+    }
+    (out, merged)
+}
+
+/// Step 5b: source triangles left unmerged by [`merge_pairs`] are paired with a later
+/// leftover source triangle across a shared edge (same end points, opposite direction) into
+/// a planar strictly convex quad, greedily in piece order, each triangle trying its longest
+/// edge first. Encoders that reorder triangles
+/// for the vertex cache (gltfpack, Draco's edgebreaker) leave a quad's two triangles apart;
+/// without this the same surface would bake as twice the elements. Returns the pieces (a
+/// quad where its first triangle was) and how many pairs were merged.
+fn pair_by_edges(pieces: Vec<Piece>, tol: Tolerance) -> (Vec<Piece>, usize) {
+    let leftover = |p: &Piece| p.source_triangle && p.vertices.len() == 3;
+    // Directed edge (from, to) → the leftover triangle that has it.
+    let mut edges: HashMap<(PointKey, PointKey), usize> = HashMap::new();
+    for (k, piece) in pieces.iter().enumerate().filter(|(_, p)| leftover(p)) {
+        for i in 0..3 {
+            let (a, b) = (piece.vertices[i], piece.vertices[(i + 1) % 3]);
+            edges.entry((point_key(a), point_key(b))).or_insert(k);
+        }
+    }
+    if edges.is_empty() {
+        return (pieces, 0);
+    }
+    let mut partner: Vec<Option<usize>> = vec![None; pieces.len()];
+    let mut taken = vec![false; pieces.len()];
+    let mut quads: HashMap<usize, Vec<DVec3>> = HashMap::new();
+    for (k, piece) in pieces.iter().enumerate() {
+        if !leftover(piece) || taken[k] {
+            continue;
+        }
+        // Longest edge first: a quad's two triangles share its diagonal, their longest edge
+        // (pairing across a short edge makes sheared quads of neighbouring cells).
+        let v = &piece.vertices;
+        let mut order = [0usize, 1, 2];
+        order.sort_by(|&x, &y| {
+            let length = |i: usize| v[i].distance_squared(v[(i + 1) % 3]);
+            length(y).total_cmp(&length(x)).then(x.cmp(&y))
+        });
+        for i in order {
+            let (a, b) = (piece.vertices[i], piece.vertices[(i + 1) % 3]);
+            let Some(&j) = edges.get(&(point_key(b), point_key(a))) else {
+                continue;
+            };
+            if j <= k || taken[j] {
+                continue;
+            }
+            if let Some(quad) =
+                merge_triangles(&piece.vertices, &pieces[j].vertices, tol.same_point)
+            {
+                taken[k] = true;
+                taken[j] = true;
+                partner[k] = Some(j);
+                quads.insert(k, quad);
+                break;
+            }
+        }
+    }
+    let merged = quads.len();
+    if merged == 0 {
+        return (pieces, 0);
+    }
+    let partners: HashSet<usize> = partner.iter().flatten().copied().collect();
+    let mut out = Vec::with_capacity(pieces.len() - merged);
+    for (k, piece) in pieces.into_iter().enumerate() {
+        if partners.contains(&k) {
+            continue;
+        }
+        match quads.remove(&k) {
+            Some(vertices) => out.push(Piece {
+                face: piece.face,
+                vertices,
+                source_triangle: false,
+            }),
             None => out.push(piece),
         }
     }

@@ -596,3 +596,30 @@ fn scene_with_only_points_is_empty() {
     let result = write_and_load(&b);
     assert!(matches!(result, Err(ImportError::Empty)), "{result:?}");
 }
+
+#[test]
+fn skinned_and_morphed_meshes_are_named_as_baked_in_their_bind_pose() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut b = GltfBuilder::new();
+    let triangle = [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    let still = b.triangle_mesh("still", &triangle, None, None);
+    let moved = [[2.0f32, 0.0, 0.0], [3.0, 0.0, 0.0], [2.0, 1.0, 0.0]];
+    let mut primitive = b.primitive(&moved, None, None, 4);
+    let offsets = b.positions(&[[0.0f32, 0.0, 0.1]; 3]);
+    primitive["targets"] = json!([{ "POSITION": offsets }]);
+    let morphed = b.mesh("blob", vec![primitive]);
+    let n0 = b.node(json!({ "mesh": still, "name": "plain" }));
+    let n1 = b.node(json!({ "mesh": morphed, "name": "face" }));
+    b.scene(&[n0, n1]);
+    let scene = load(&b.write_embedded(&dir.path().join("m.gltf"))).expect("loads");
+    let named: Vec<&String> = scene
+        .warnings
+        .iter()
+        .filter(|w| w.contains("bind pose"))
+        .collect();
+    assert_eq!(named.len(), 1, "{:?}", scene.warnings);
+    assert!(
+        named[0].contains("mesh \"blob\"") && named[0].contains("morph targets"),
+        "{named:?}"
+    );
+}
