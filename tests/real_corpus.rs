@@ -128,20 +128,21 @@ enum Outcome {
     Failed(String),
 }
 
-fn bake(input: &Path, out: &Path, report: &Path) -> Outcome {
+fn bake(input: &Path, out: &Path, report: &Path, options: &[&str], limit: Duration) -> Outcome {
     let mut command = Command::new(env!("CARGO_BIN_EXE_bake"));
     command
         .arg(input)
         .arg(out)
-        .args(["--quality", "draft", "--report"])
+        .args(options)
+        .arg("--report")
         .arg(report);
-    let run = match run_limited(command, TIME_LIMIT) {
+    let run = match run_limited(command, limit) {
         Ok(run) => run,
         Err(e) => return Outcome::Failed(format!("cannot run: {e}")),
     };
     let (seconds, stderr) = (run.seconds, run.stderr);
     let Some(status) = run.status else {
-        return Outcome::Failed(format!("still running after {TIME_LIMIT:?}: killed"));
+        return Outcome::Failed(format!("still running after {limit:?}: killed"));
     };
     let errors: Vec<&str> = stderr
         .lines()
@@ -177,6 +178,22 @@ fn bake(input: &Path, out: &Path, report: &Path) -> Outcome {
 
 #[test]
 fn every_assimp_gltf2_model_bakes_or_is_refused_in_one_line() {
+    corpus(&["--quality", "draft"], TIME_LIMIT, true);
+}
+
+/// The same models with default options (`--quality normal`), uncompressed, 10 minutes
+/// each: the benchmark of docs/real-assets.md, run by hand with
+/// `cargo test --release --test real_corpus -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn default_options_benchmark() {
+    corpus(&[], Duration::from_secs(600), false);
+}
+
+/// Bakes every model (with a sun where it has none) with `options` within `limit`, and with
+/// `compressed` its meshopt and Draco copies; fails if any run neither bakes nor is refused
+/// in one line.
+fn corpus(options: &[&str], limit: Duration, compressed: bool) {
     let root = Path::new(MODELS);
     if !root.is_dir() {
         skip(
@@ -208,7 +225,8 @@ fn every_assimp_gltf2_model_bakes_or_is_refused_in_one_line() {
             None => "",
         };
         let out = work.path().join(format!("baked-{k}.glb"));
-        let outcome = bake(&copy, &out, &work.path().join(format!("report-{k}.json")));
+        let report = work.path().join(format!("report-{k}.json"));
+        let outcome = bake(&copy, &out, &report, options, limit);
         let shown = input
             .strip_prefix(root)
             .unwrap_or(input)
@@ -217,14 +235,12 @@ fn every_assimp_gltf2_model_bakes_or_is_refused_in_one_line() {
         let mut outcomes = vec![(shown.clone(), outcome)];
         // What web pipelines make of a model that reads: meshopt + quantised (gltfpack -c)
         // and Draco (Google's encoder through glTF-Transform), baked by the same rules.
-        if matches!(outcomes[0].1, Outcome::Baked { .. }) {
+        if compressed && matches!(outcomes[0].1, Outcome::Baked { .. }) {
             for (variant, encoded) in compressed_variants(&copy, work.path(), k) {
                 let out = work.path().join(format!("baked-{k}-{variant}.glb"));
                 let report = work.path().join(format!("report-{k}-{variant}.json"));
-                outcomes.push((
-                    format!("{shown} [{variant}]"),
-                    bake(&encoded, &out, &report),
-                ));
+                let outcome = bake(&encoded, &out, &report, options, limit);
+                outcomes.push((format!("{shown} [{variant}]"), outcome));
             }
         }
         for (shown, outcome) in outcomes {
