@@ -104,7 +104,8 @@ pub fn no_light() -> String {
         .to_string()
 }
 
-fn material_name(name: Option<&str>, k: usize) -> String {
+/// `material "name" (k)`, or `material k` when unnamed: how warnings name a material.
+pub(crate) fn material_name(name: Option<&str>, k: usize) -> String {
     match name {
         Some(name) => format!("material {name:?} ({k})"),
         None => format!("material {k}"),
@@ -112,7 +113,7 @@ fn material_name(name: Option<&str>, k: usize) -> String {
 }
 
 /// Up to eight names joined, and how many more.
-fn list(names: &[String]) -> String {
+pub(crate) fn list(names: &[String]) -> String {
     const SHOWN: usize = 8;
     let shown = names[..names.len().min(SHOWN)].join(", ");
     if names.len() > SHOWN {

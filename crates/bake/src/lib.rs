@@ -721,10 +721,10 @@ pub const ROW_SUM_WARNING_MARGIN: f64 = 0.05;
 /// ([`form_factor::DenseFormFactors::limit_row_sums`]): how many elements, the largest sum,
 /// and the polygons with most of them (index, mesh, source face, material).
 fn row_sum_warning(scene: &Scene, mesh: &ElementMesh, over: &[(usize, f64)]) -> Option<String> {
-    let largest = over.iter().map(|&(_, s)| s).fold(0.0f64, f64::max);
     if over.is_empty() {
         return None;
     }
+    let largest = over.iter().map(|&(_, s)| s).fold(0.0f64, f64::max);
     let mut by_polygon = std::collections::BTreeMap::<u32, (usize, f64)>::new();
     for &(i, sum) in over {
         let entry = by_polygon.entry(mesh.elements[i].polygon).or_default();
@@ -767,14 +767,13 @@ fn polygon_name(scene: &Scene, polygon: usize) -> String {
         },
         None => format!("mesh {}", p.origin.mesh),
     };
-    let material = match scene
-        .materials
-        .get(p.material)
-        .and_then(|m| m.name.as_deref())
-    {
-        Some(name) => format!("material {name:?}"),
-        None => format!("material {}", p.material),
-    };
+    let material = advice::material_name(
+        scene
+            .materials
+            .get(p.material)
+            .and_then(|m| m.name.as_deref()),
+        p.material,
+    );
     format!(
         "polygon {polygon} ({mesh}, face {}, {material})",
         p.origin.face
@@ -956,12 +955,9 @@ fn limit_reflectance(
         .enumerate()
         .filter(|(_, &count)| count > 0)
         .map(|(k, &count)| {
-            let name = match scene.materials[k].name.as_deref() {
-                Some(name) => format!("material {name:?} ({k})"),
-                None => format!("material {k}"),
-            };
             format!(
-                "{name}: {count} element{}",
+                "{}: {count} element{}",
+                advice::material_name(scene.materials[k].name.as_deref(), k),
                 if count == 1 { "" } else { "s" }
             )
         })
@@ -969,17 +965,11 @@ fn limit_reflectance(
     if named.is_empty() {
         return None;
     }
-    const SHOWN: usize = 8;
-    let more = if named.len() > SHOWN {
-        format!(" and {} more materials", named.len() - SHOWN)
-    } else {
-        String::new()
-    };
     Some(format!(
         "reflectance rho = 1 (all light reflected: no real surface, and no finite answer in a \
-         closed scene) lowered to --max-reflectance {max_reflectance} on {}{more}; glTF's \
-         default material and white textures on a white base colour have rho = 1",
-        named[..named.len().min(SHOWN)].join(", ")
+         closed scene) lowered to --max-reflectance {max_reflectance} on {}; glTF's default \
+         material and white textures on a white base colour have rho = 1",
+        advice::list(&named)
     ))
 }
 
