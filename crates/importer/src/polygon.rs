@@ -609,7 +609,6 @@ fn pair_by_edges(pieces: Vec<Piece>, tol: Tolerance) -> (Vec<Piece>, usize) {
     if edges.is_empty() {
         return (pieces, 0);
     }
-    let mut partner: Vec<Option<usize>> = vec![None; pieces.len()];
     let mut taken = vec![false; pieces.len()];
     let mut quads: HashMap<usize, Vec<DVec3>> = HashMap::new();
     for (k, piece) in pieces.iter().enumerate() {
@@ -637,7 +636,6 @@ fn pair_by_edges(pieces: Vec<Piece>, tol: Tolerance) -> (Vec<Piece>, usize) {
             {
                 taken[k] = true;
                 taken[j] = true;
-                partner[k] = Some(j);
                 quads.insert(k, quad);
                 break;
             }
@@ -647,18 +645,16 @@ fn pair_by_edges(pieces: Vec<Piece>, tol: Tolerance) -> (Vec<Piece>, usize) {
     if merged == 0 {
         return (pieces, 0);
     }
-    let partners: HashSet<usize> = partner.iter().flatten().copied().collect();
     let mut out = Vec::with_capacity(pieces.len() - merged);
     for (k, piece) in pieces.into_iter().enumerate() {
-        if partners.contains(&k) {
-            continue;
-        }
         match quads.remove(&k) {
             Some(vertices) => out.push(Piece {
                 face: piece.face,
                 vertices,
                 source_triangle: false,
             }),
+            // Taken without a quad of its own: the second triangle of a pair.
+            None if taken[k] => {}
             None => out.push(piece),
         }
     }
