@@ -37,7 +37,7 @@ mod sampling;
 pub use geometry::Patch;
 pub use sampling::{pair_seed, rays_for, strata, Pattern, SplitMix64};
 
-use bvh::Tree;
+use bvh::{Slabs, Tree};
 use geometry::{facing, may_block, may_block_light, Piece};
 use glam::DVec3;
 use importer::Polygon;
@@ -132,17 +132,30 @@ impl Counters {
     }
 }
 
-/// The bounding box of a receiver and the far points of its light segments.
-fn light_box(receiver: &Patch, far: &[DVec3]) -> (DVec3, DVec3) {
-    far.iter().fold(
-        receiver
-            .corners()
-            .iter()
-            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
-                (lo.min(p), hi.max(p))
-            }),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    )
+/// The volume a receiver's light segments sweep (the convex hull of its corners and the far
+/// points, see [`Occluders::can_shadow`]) for the tree query: tested along x, y, z, the
+/// receiver's normal and the plane through each receiver edge and its corner's far point —
+/// the hull's own faces (a sun's prism sides `edge × d`, a point light's pyramid sides), the
+/// planes [`may_block_light`]'s side test uses, so the query drops nothing it would keep.
+fn light_slabs(receiver: &Patch, far: &[DVec3]) -> Slabs {
+    let c = receiver.corners();
+    let mut points = [DVec3::ZERO; 8];
+    let mut axes = [DVec3::ZERO; 5];
+    let (mut n, mut m) = (0, 0);
+    for &p in c.iter().chain(far).take(points.len()) {
+        points[n] = p;
+        n += 1;
+    }
+    axes[m] = receiver.normal();
+    m += 1;
+    if !far.is_empty() {
+        for (e, &p) in c.iter().enumerate().take(axes.len() - 1) {
+            let q = c[(e + 1) % c.len()];
+            axes[m] = (q - p).cross(far[e % far.len()] - p);
+            m += 1;
+        }
+    }
+    Slabs::new(&points[..n], &axes[..m])
 }
 
 /// One occludable pair of a polygon p: (q, candidate occluders).
@@ -349,8 +362,7 @@ impl Occluders {
     pub fn can_shadow(&self, receiver: &Patch, far: &[DVec3]) -> bool {
         let Some(tree) = &self.tree else { return false };
         let tol = self.tol();
-        let (lo, hi) = light_box(receiver, far);
-        tree.any_in_box(lo, hi, |k| {
+        tree.any_in_slabs(&light_slabs(receiver, far), |k| {
             k != receiver.polygon() && may_block_light(&self.pieces[k], receiver, far, tol)
         })
     }
@@ -360,8 +372,7 @@ impl Occluders {
         out.clear();
         let Some(tree) = &self.tree else { return };
         let tol = self.tol();
-        let (lo, hi) = light_box(receiver, far);
-        tree.for_each_in_box(lo, hi, |k| {
+        tree.for_each_in_slabs(&light_slabs(receiver, far), |k| {
             if k != receiver.polygon() && may_block_light(&self.pieces[k], receiver, far, tol) {
                 out.push(k);
             }

@@ -382,3 +382,87 @@ fn estimators_agree_at_the_extremes() {
         );
     }
 }
+
+/// `shadow_candidates` (the oriented sweep query of issue 29) misses no polygon that blocks a
+/// light segment: random quads in every orientation, each a receiver of three suns (one
+/// grazing) and two point lights; every segment from a random receiver point to its far point
+/// is tested against every polygon alone (brute force), and each polygon that blocks one must
+/// be a candidate. `can_shadow` agrees with the candidate list being non-empty.
+#[test]
+fn shadow_candidates_miss_no_blocker() {
+    let mut rng = bake_visibility::SplitMix64::new(29);
+    let mut r = move || rng.next_f64();
+    let mut quads = Vec::new();
+    for k in 0..60 {
+        let centre = DVec3::new(10.0 * r(), 10.0 * r(), 10.0 * r());
+        let n = DVec3::new(r() - 0.5, r() - 0.5, r() - 0.5).normalize();
+        let u = n.any_orthonormal_vector();
+        let v = n.cross(u);
+        let (a, b) = (0.3 + 1.5 * r(), 0.3 + 1.5 * r());
+        let c = [
+            centre - u * a - v * b,
+            centre + u * a - v * b,
+            centre + u * a + v * b,
+            centre - u * a + v * b,
+        ];
+        quads.push(polygon(&c, k));
+    }
+    let occluders = Occluders::new(&quads).unwrap();
+    let alone: Vec<Occluders> = quads
+        .iter()
+        .map(|q| Occluders::new(std::slice::from_ref(q)).unwrap())
+        .collect();
+    let reach = 2.0 * occluders.scene_scale();
+    let suns = [
+        DVec3::new(0.3, -1.0, 0.2).normalize(),
+        DVec3::new(-0.7, -0.2, 0.6).normalize(),
+        DVec3::new(1.0, -0.02, 0.0).normalize(),
+    ];
+    let points = [DVec3::new(5.0, 12.0, 5.0), DVec3::new(1.0, 4.0, 8.0)];
+    let (mut tested, mut blocked) = (0, 0);
+    let mut candidates = Vec::new();
+    for (i, q) in quads.iter().enumerate() {
+        let receiver = patch(q, i);
+        let c = &q.vertices;
+        let lights: Vec<Vec<DVec3>> = suns
+            .iter()
+            .map(|d| c.iter().map(|&p| p - *d * reach).collect())
+            .chain(points.iter().map(|&l| vec![l]))
+            .collect();
+        for far in &lights {
+            occluders.shadow_candidates(&receiver, far, &mut candidates);
+            assert_eq!(
+                occluders.can_shadow(&receiver, far),
+                !candidates.is_empty(),
+                "receiver {i}"
+            );
+            for _ in 0..30 {
+                let (s, t) = (r(), r());
+                let p = c[0] + (c[1] - c[0]) * s + (c[3] - c[0]) * t;
+                let end = if far.len() == 1 {
+                    far[0]
+                } else {
+                    // The far point of this receiver point along the sun.
+                    p + (far[0] - c[0])
+                };
+                if q.normal.dot(end - p) <= 0.0 {
+                    continue;
+                }
+                tested += 1;
+                for (k, one) in alone.iter().enumerate() {
+                    if k != i && one.segment_blocked(p, end, [usize::MAX, usize::MAX]) {
+                        blocked += 1;
+                        assert!(
+                            candidates.contains(&k),
+                            "receiver {i}: polygon {k} blocks a light segment but is no candidate"
+                        );
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        tested > 2000 && blocked > 200,
+        "{tested} segments, {blocked} blocked"
+    );
+}
