@@ -33,59 +33,149 @@ pub struct Cli {
     /// Output scene: .gltf (writes OUT's stem + .bin beside it) or .glb. Written atomically.
     pub output: PathBuf,
 
-    /// The accuracy–time trade in one knob: element size, target error (--max-error),
-    /// form-factor estimator, and shadow rays, as measured in docs/accuracy.md. `draft`:
-    /// elements of diagonal/8, --max-error 1e-2, 49 rays; `normal`: diagonal/16, 1e-3, 121
-    /// rays; `high`: diagonal/32, 1e-4, 961 rays. Options given explicitly override the preset.
-    #[arg(long, value_enum, default_value_t = QualityArg::Normal)]
+    // ---- Accuracy ----
+    /// The accuracy–time trade in one knob.
+    ///
+    /// Sets the element size, target error (--max-error), form-factor estimator, and shadow
+    /// rays, as measured in docs/accuracy.md. `draft`: elements of diagonal/8, --max-error 1e-2,
+    /// 49 rays; `normal`: diagonal/16, 1e-3, 121 rays; `high`: diagonal/32, 1e-4, 961 rays.
+    /// Options given explicitly override the preset.
+    #[arg(long, value_enum, default_value_t = QualityArg::Normal, help_heading = "Accuracy")]
     pub quality: QualityArg,
-
+    /// Target relative error of the radiosity b, in (0, 1).
+    ///
+    /// The dense transport's per-pair form-factor tolerance is derived from it and the scene's
+    /// largest reflectance ρ, through the bound cond∞ ≤ (1 + ρ(1 + τ))/(1 − ρ(1 + τ)) (bright
+    /// rooms get tighter form factors, e.g. 5e-7 per pair for ρ = 0.999 at 1e-3). It bounds what
+    /// form-factor integration can add, not the element size's discretisation error (see the
+    /// report's `error`). [default: from --quality: 1e-2 draft, 1e-3 normal, 1e-4 high]
+    #[arg(long, value_name = "E", value_parser = parse_tolerance, help_heading = "Accuracy")]
+    pub max_error: Option<f64>,
+    /// No element edge longer than L (world units).
+    ///
+    /// Default when neither this nor --subdiv is given: the scene's bounding-box diagonal / 16
+    /// with --quality normal (the unit cube gets 10×10 elements per wall), / 8 draft, / 32 high.
+    #[arg(
+        long,
+        value_name = "L",
+        allow_negative_numbers = true,
+        help_heading = "Accuracy"
+    )]
+    pub max_element_size: Option<f64>,
     /// Subdivide every quad into N×N elements and every triangle into N² elements.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024),
-          conflicts_with = "max_element_size")]
+          conflicts_with = "max_element_size", help_heading = "Accuracy")]
     pub subdiv: Option<u32>,
-    /// Subdivide so that no element edge is longer than L (world units). Default when neither
-    /// this nor --subdiv is given: the scene's bounding-box diagonal / 16 with --quality
-    /// normal (the unit cube gets 10×10 elements per wall), / 8 draft, / 32 high.
-    #[arg(long, value_name = "L", allow_negative_numbers = true)]
-    pub max_element_size: Option<f64>,
+    /// Refine where the light changes (default: on, dense transport).
+    ///
+    /// After a solve, split elements whose discretisation estimate exceeds --max-error
+    /// (relative to the mean radiosity) or that a light's shadow edge crosses, and solve again,
+    /// until the estimate meets it, --max-elements is reached (a warning says where) or nothing
+    /// changes; vertex values are not smoothed across shadow edges. On by default on the dense
+    /// transport; on the hierarchical transport (each solve links the scene again, at most 3
+    /// solves) only when asked (`on`, or --max-elements); `off` keeps the uniform mesh.
+    #[arg(long, value_enum, value_name = "on|off", help_heading = "Accuracy")]
+    pub refine: Option<OnOff>,
+    /// The element budget of refinement.
+    ///
+    /// [default: 2000, the dense crossover; on the hierarchical transport the grid's elements
+    /// plus a quarter where that is more]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..),
+          help_heading = "Accuracy")]
+    pub max_elements: Option<u64>,
+    /// Shadow rays per element pair that something may come between.
+    ///
+    /// Hidden surfaces: shadow rays per element pair that some polygon may come between
+    /// (rounded to a square of strata, 1…1024). Pairs nothing can come between (every pair of
+    /// a convex enclosure such as the paper's cube) keep the exact form factor and cast no
+    /// ray. Measured on the Cornell box: 49 / 121 / 289 / 961 rays give an rms error of the
+    /// visible fraction of 0.030 / 0.016 / 0.009 / 0.005. [default: from --quality: 49,
+    /// 121, 961]
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=1024),
+          help_heading = "Accuracy")]
+    pub visibility_samples: Option<u32>,
+    /// Hierarchical transport: largest error of one link, relative to the mean radiosity.
+    ///
+    /// The largest estimated error of one link's contribution to the radiosity of its
+    /// receiver, relative to the scene's mean radiosity [default: from --quality: 0.05 draft,
+    /// 0.01 normal, 0.002 high].
+    #[arg(long, value_name = "T", value_parser = parse_positive, help_heading = "Accuracy")]
+    pub link_tolerance: Option<f64>,
 
-    /// Truncate the light transport after exactly K interreflections instead of solving the
-    /// system exactly (K = 0: direct light from emitters only; the paper's Figure 7).
-    /// At most 10000 (each bounce multiplies by the transport once). Not with --solver.
-    #[arg(long, value_name = "K", conflicts_with = "solver",
-          value_parser = clap::value_parser!(u32).range(0..=i64::from(bake_core::MAX_BOUNCES)))]
-    pub bounces: Option<u32>,
-    /// How to solve (I − ρF) b = e exactly. `direct`: LU factorisation, O(n³) time and an n×n
-    /// matrix per distinct reflectance band; always finishes. `iterative`: GMRES, O(n²) per
-    /// iteration and little extra memory; stops when the relative residual
-    /// ‖(I − ρF) b − e‖ / ‖e‖ of every band is at most --tolerance, and fails (exit 1, naming
-    /// the band, iterations and residual) rather than return an unconverged answer when
-    /// --max-iterations runs out. Both refuse systems without a meaningful finite solution
-    /// (e.g. a closed scene with ρ = 1 and an emitter) and report the condition number
-    /// cond∞(I − ρF) per band, about (1 + ρ)/(1 − ρ) in a closed grey scene.
-    /// [default: direct for the dense transport; the hierarchical transport is always solved
-    /// by GMRES]
-    #[arg(long, value_enum)]
-    pub solver: Option<SolverKind>,
-    /// Iterative solver: the relative residual to reach, in (0, 1) [default: 1e-12 dense, 1e-6
-    /// hierarchical]; implies --solver iterative. The error
-    /// of b is at most about cond∞ × T. Rounding alone leaves a residual of about
-    /// 1e-16 × cond∞ × √n, so very bright closed scenes (ρ ≥ 0.9999) may need T ≥ 1e-11.
-    #[arg(long, value_name = "T", value_parser = parse_tolerance)]
-    pub tolerance: Option<f64>,
-    /// Iterative solver: GMRES iterations allowed per band (each one multiplies by the
-    /// form-factor matrix once) [default: 1000]; implies --solver iterative.
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
-    pub max_iterations: Option<u32>,
+    // ---- Lights ----
+    /// Shadow rays per element that a point or spot light may be shadowed on.
+    ///
+    /// Punctual lights (KHR_lights_punctual point and spot lights): shadow rays per element
+    /// that some polygon may shadow from the light (rounded to a square of strata, 1…1024).
+    /// Elements nothing can shadow get the exact closed form and no ray; directional lights'
+    /// shadows are clipped exactly and cast none. [default: from --quality: 4, 16, 64]
+    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=1024),
+          help_heading = "Lights")]
+    pub light_samples: Option<u32>,
+    /// Lightmap bake: keep the input's punctual lights on their nodes.
+    ///
+    /// Their light is already in the lightmap, so a lit viewer shows it twice; for engines that
+    /// use them for specular highlights only.
+    #[arg(long, help_heading = "Lights")]
+    pub keep_lights: bool,
 
-    /// Vertex values and lightmap texels: `smooth` averages neighbouring elements
-    /// (area-weighted, the paper's linear smoothing, Figure 8); `flat` exports every element
-    /// with its own constant value (Figure 6), and every lightmap texel with its element's H.
-    #[arg(long, value_enum, default_value_t = Shading::Smooth)]
+    // ---- Lightmap ----
+    /// Lightmap texel size in world units (default: the scene's bounding-box diagonal / 256).
+    ///
+    /// Made coarser automatically when the atlases would be larger than --lightmap-max (after
+    /// --lightmap-atlases atlases).
+    #[arg(
+        long,
+        value_name = "L",
+        allow_negative_numbers = true,
+        help_heading = "Lightmap"
+    )]
+    pub lightmap_texel: Option<f64>,
+    /// Largest lightmap atlas side, in texels.
+    #[arg(long, value_name = "N", default_value_t = lightmap::DEFAULT_MAX_SIZE,
+          value_parser = clap::value_parser!(u32).range(16..=16384), help_heading = "Lightmap")]
+    pub lightmap_max: u32,
+    /// Most lightmap atlases before the texel size is made coarser.
+    ///
+    /// When the charts at the texel size do not fit one --lightmap-max atlas, whole primitives
+    /// are packed into several (each its own PNG and EXR) before the texel size is made
+    /// coarser; 1 keeps one atlas.
+    #[arg(long, value_name = "N", default_value_t = lightmap::DEFAULT_MAX_ATLASES,
+          value_parser = clap::value_parser!(u32).range(1..=256), help_heading = "Lightmap")]
+    pub lightmap_atlases: u32,
+    /// Where the lightmap's charts come from.
+    ///
+    /// `keep`: the input's TEXCOORD_1 as authored (refused when it leaves [0, 1], overlaps
+    /// within a primitive — or a double-sided face's sides would share texels — or a material
+    /// samples it as a texture set; primitives that overlap each other get an atlas each);
+    /// `generate`: one chart per polygon, packed; `auto`: `keep` when the whole scene's
+    /// TEXCOORD_1 is usable, else per primitive: one whose own TEXCOORD_1 is usable keeps it
+    /// in an atlas region of its own (scaled and moved), the others are generated (the
+    /// report's options.lightmap_layout says which and why, per primitive).
+    #[arg(long, value_enum, default_value_t = LightmapUv::Auto, help_heading = "Lightmap")]
+    pub lightmap_uv: LightmapUv,
+
+    // ---- Output ----
+    /// What to write: the vertex bake, the lightmap bake, or both.
+    ///
+    /// `vertex`: OUT holds the element mesh with the radiosity in COLOR_0 (unlit). `lightmap`:
+    /// OUT holds the input's polygons (not subdivided) with lit materials, TEXCOORD_1 and a
+    /// MOZ_lightmap PNG (OUT's stem + .lightmap.png), plus OUT's stem + .lightmap.exr (linear
+    /// float irradiance). `both`: OUT holds the vertex bake and OUT's stem + .lightmap.gltf (or
+    /// .glb) the lightmap bake, the images beside it.
+    #[arg(long, value_enum, default_value_t = Target::Both, help_heading = "Output")]
+    pub target: Target,
+    /// Vertex values and lightmap texels: smoothed, or constant per element.
+    ///
+    /// `smooth` averages neighbouring elements (area-weighted, the paper's linear smoothing,
+    /// Figure 8); `flat` exports every element with its own constant value (Figure 6), and
+    /// every lightmap texel with its element's H.
+    #[arg(long, value_enum, default_value_t = Shading::Smooth, help_heading = "Output")]
     pub shading: Shading,
-    /// Multiply radiosity by X before clamping to [0, 1] for COLOR_0 (the unclamped value
-    /// is kept in the _RADIOSITY attribute and the report). `auto`: the exposure that maps the
+    /// Multiply radiosity by X before clamping it into COLOR_0.
+    ///
+    /// Multiply radiosity by X before clamping to [0, 1] for COLOR_0 (the unclamped value is
+    /// kept in the _RADIOSITY attribute and the report). `auto`: the exposure that maps the
     /// 99th percentile, by area, of the elements' brightest band to 0.8 (punctual lights give
     /// b in the hundreds or thousands of nits); the summary line and the report say which
     /// exposure was used.
@@ -94,176 +184,154 @@ pub struct Cli {
         value_name = "X|auto",
         default_value = "1",
         allow_negative_numbers = true,
-        value_parser = parse_exposure
+        value_parser = parse_exposure,
+        help_heading = "Output"
     )]
     pub exposure: Exposure,
+    /// Write a JSON bake report.
+    ///
+    /// Options, counts, timings, residuals, every element's centroid, normal, area, ρ, e and b
+    /// in world space.
+    #[arg(long, value_name = "FILE.json", help_heading = "Output")]
+    pub report: Option<PathBuf>,
+    /// What the report says per element.
+    ///
+    /// `all` (a summary and every element), `summary` (count, area, range and mean of b) or
+    /// `none` [default: all up to 100 000 elements, summary above, with a warning].
+    #[arg(long, value_enum, value_name = "WHICH", help_heading = "Output")]
+    pub report_elements: Option<ReportElements>,
+    /// Print nothing but errors (no warnings, progress or summary).
+    #[arg(long, short, help_heading = "Output")]
+    pub quiet: bool,
 
-    /// Punctual lights (KHR_lights_punctual point and spot lights): shadow rays per element
-    /// that some polygon may shadow from the light (rounded to a square of strata, 1…1024).
-    /// Elements nothing can shadow get the exact closed form and no ray; directional lights'
-    /// shadows are clipped exactly and cast none. [default: from --quality: 4, 16, 64]
-    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=1024))]
-    pub light_samples: Option<u32>,
-    /// Lightmap bake: keep the input's punctual lights on their nodes. Their light is already
-    /// in the lightmap, so a lit viewer shows it twice; for engines that use them for specular
-    /// highlights only.
-    #[arg(long)]
-    pub keep_lights: bool,
-
-    /// How to compute each element pair's form factor. `contour`: the contour integral (eq. 13),
-    /// exact to ~1e-15 with the default options. `point-polygon`: the closed form from
-    /// points of the smaller element (--ff-points per triangle) to the other element.
-    /// `point-point`: cosθi cosθj Aj / (π r²) at the centroids. `auto` (the presets' choice):
-    /// per pair, the cheapest of those whose measured error bound meets --ff-tolerance.
-    #[arg(long, value_enum, value_name = "E")]
+    // ---- Expert ----
+    /// How light moves between elements.
+    ///
+    /// `dense`: every element pair's form factor in an n × n matrix (exact; time and memory
+    /// grow with n²). `hierarchical`: hierarchical radiosity (Hanrahan, Salzman & Aupperle
+    /// 1991): each polygon is a tree over its elements and light moves along links between the
+    /// coarsest node pairs whose estimated error is below --link-tolerance (links grow about
+    /// linearly with n). `auto`: dense up to the measured crossover, hierarchical above it; the
+    /// report says which and why.
+    #[arg(long, value_enum, default_value_t = TransportArg::Auto, help_heading = "Expert")]
+    pub transport: TransportArg,
+    /// How to solve (I − ρF) b = e exactly: LU or GMRES.
+    ///
+    /// `direct`: LU factorisation, O(n³) time and an n×n matrix per distinct reflectance band;
+    /// always finishes. `iterative`: GMRES, O(n²) per iteration and little extra memory; stops
+    /// when the relative residual ‖(I − ρF) b − e‖ / ‖e‖ of every band is at most --tolerance,
+    /// and fails (exit 1, naming the band, iterations and residual) rather than return an
+    /// unconverged answer when --max-iterations runs out. Both refuse systems without a
+    /// meaningful finite solution (e.g. a closed scene with ρ = 1 and an emitter) and report
+    /// the condition number cond∞(I − ρF) per band, about (1 + ρ)/(1 − ρ) in a closed grey
+    /// scene. [default: direct for the dense transport; the hierarchical transport is always
+    /// solved by GMRES]
+    #[arg(long, value_enum, help_heading = "Expert")]
+    pub solver: Option<SolverKind>,
+    /// Iterative solver: the relative residual to reach, in (0, 1).
+    ///
+    /// [default: 1e-12 dense, 1e-6 hierarchical]; implies --solver iterative. The error of b is
+    /// at most about cond∞ × T. Rounding alone leaves a residual of about 1e-16 × cond∞ × √n,
+    /// so very bright closed scenes (ρ ≥ 0.9999) may need T ≥ 1e-11.
+    #[arg(long, value_name = "T", value_parser = parse_tolerance, help_heading = "Expert")]
+    pub tolerance: Option<f64>,
+    /// Iterative solver: GMRES iterations allowed per band.
+    ///
+    /// Each one multiplies by the form-factor matrix once [default: 1000]; implies --solver
+    /// iterative.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..),
+          help_heading = "Expert")]
+    pub max_iterations: Option<u32>,
+    /// Truncate after exactly K interreflections instead of solving exactly.
+    ///
+    /// Truncate the light transport after exactly K interreflections instead of solving the
+    /// system exactly (K = 0: direct light from emitters only; the paper's Figure 7). At most
+    /// 10000 (each bounce multiplies by the transport once). Not with --solver.
+    #[arg(long, value_name = "K", conflicts_with = "solver",
+          value_parser = clap::value_parser!(u32).range(0..=i64::from(bake_core::MAX_BOUNCES)),
+          help_heading = "Expert")]
+    pub bounces: Option<u32>,
+    /// How to compute each element pair's form factor.
+    ///
+    /// `contour`: the contour integral (eq. 13), exact to ~1e-15 with the default options.
+    /// `point-polygon`: the closed form from points of the smaller element (--ff-points per
+    /// triangle) to the other element. `point-point`: cosθi cosθj Aj / (π r²) at the
+    /// centroids. `auto` (the presets' choice): per pair, the cheapest of those whose measured
+    /// error bound meets --ff-tolerance.
+    #[arg(long, value_enum, value_name = "E", help_heading = "Expert")]
     pub ff_estimator: Option<EstimatorArg>,
-    /// `auto` estimator: the largest relative error allowed per element pair, in (0, 1)
-    /// (implies --ff-estimator auto), overriding the one --max-error derives. Below 1e-8 every
+    /// `auto` estimator: largest relative error per element pair, in (0, 1).
+    ///
+    /// Implies --ff-estimator auto, and overrides the one --max-error derives. Below 1e-8 every
     /// pair gets the contour integral.
-    #[arg(long, value_name = "T", value_parser = parse_tolerance)]
+    #[arg(long, value_name = "T", value_parser = parse_tolerance, help_heading = "Expert")]
     pub ff_tolerance: Option<f64>,
-    /// Target relative error of the radiosity b, in (0, 1): the dense transport's per-pair
-    /// form-factor tolerance is derived from it and the scene's largest reflectance ρ, through
-    /// the bound cond∞ ≤ (1 + ρ(1 + τ))/(1 − ρ(1 + τ)) (bright rooms get tighter form factors,
-    /// e.g. 5e-7 per pair for ρ = 0.999 at 1e-3). It bounds what form-factor integration can
-    /// add, not the element size's discretisation error (see the report's `error`).
-    /// [default: from --quality: 1e-2 draft, 1e-3 normal, 1e-4 high]
-    #[arg(long, value_name = "E", value_parser = parse_tolerance)]
-    pub max_error: Option<f64>,
-    /// `point-polygon` estimator: quadrature points on the smaller element of each pair:
+    /// `point-polygon` estimator: quadrature points on the smaller element of each pair.
+    ///
     /// 1 (its centroid), or 3 (degree 2) or 7 (degree 5) per triangle of its fan (a quad is two
     /// triangles).
     #[arg(long, value_name = "N", default_value_t = 3,
           value_parser = clap::builder::PossibleValuesParser::new(["1", "3", "7"])
-              .map(|s| s.parse::<u32>().unwrap_or(3)))]
+              .map(|s| s.parse::<u32>().unwrap_or(3)),
+          help_heading = "Expert")]
     pub ff_points: u32,
     /// Contour integral: cut each element edge into this many equal segments.
     #[arg(long, value_name = "N", default_value_t = 1,
-          value_parser = clap::value_parser!(u32).range(1..=64))]
+          value_parser = clap::value_parser!(u32).range(1..=64), help_heading = "Expert")]
     pub ff_segments: u32,
-    /// Contour integral: the least number of Gauss–Legendre points per segment for
-    /// well-separated segment pairs (3 is the paper's nine-point rule). Pairs closer than 64
-    /// segment lengths get order 4 or 5 automatically unless --ff-fixed-order is given; near
+    /// Contour integral: least Gauss–Legendre points per segment.
+    ///
+    /// For well-separated segment pairs (3 is the paper's nine-point rule). Pairs closer than
+    /// 64 segment lengths get order 4 or 5 automatically unless --ff-fixed-order is given; near
     /// and touching segments are always integrated semi-analytically to machine precision.
     #[arg(long, value_name = "N", default_value_t = 3,
-          value_parser = clap::value_parser!(u32).range(1..=8))]
+          value_parser = clap::value_parser!(u32).range(1..=8), help_heading = "Expert")]
     pub ff_order: u32,
-    /// Contour integral: use --ff-order for every well-separated pair, as the paper does
-    /// (cheaper, ~1e-10 row-sum error instead of ~1e-15).
-    #[arg(long)]
+    /// Contour integral: use --ff-order for every well-separated pair, as the paper does.
+    ///
+    /// Cheaper, ~1e-10 row-sum error instead of ~1e-15.
+    #[arg(long, help_heading = "Expert")]
     pub ff_fixed_order: bool,
-    /// Contour integral: segment pairs closer than R × their length get the closed-form inner
-    /// integral and an adaptive outer rule (exact near contact); 0 gives every non-collinear
-    /// segment pair the product Gauss rule, as the paper does (faster, far less accurate near
-    /// shared edges).
-    #[arg(long, value_name = "R", default_value_t = 8.0, value_parser = parse_near_ratio)]
+    /// Contour integral: segment pairs closer than R × their length get the semi-analytic rule.
+    ///
+    /// They get the closed-form inner integral and an adaptive outer rule (exact near
+    /// contact); 0 gives every non-collinear segment pair the product Gauss rule, as the paper
+    /// does (faster, far less accurate near shared edges).
+    #[arg(long, value_name = "R", default_value_t = 8.0, value_parser = parse_near_ratio,
+          help_heading = "Expert")]
     pub ff_near_ratio: f64,
-
-    /// Hidden surfaces: shadow rays per element pair that some polygon may come between
-    /// (rounded to a square of strata, 1…1024). Pairs nothing can come between (every pair of
-    /// a convex enclosure such as the paper's cube) keep the exact form factor and cast no
-    /// ray. Measured on the Cornell box: 49 / 121 / 289 / 961 rays give an rms error of the
-    /// visible fraction of 0.030 / 0.016 / 0.009 / 0.005. [default: from --quality: 49,
-    /// 121, 961]
-    #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=1024))]
-    pub visibility_samples: Option<u32>,
-
-    /// How light moves between elements. `dense`: every element pair's form factor in an
-    /// n × n matrix (exact; time and memory grow with n²). `hierarchical`: hierarchical
-    /// radiosity (Hanrahan, Salzman & Aupperle 1991): each polygon is a tree over its elements
-    /// and light moves along links between the coarsest node pairs whose estimated error is
-    /// below --link-tolerance (links grow about linearly with n). `auto`: dense up to the
-    /// measured crossover, hierarchical above it; the report says which and why.
-    #[arg(long, value_enum, default_value_t = TransportArg::Auto)]
-    pub transport: TransportArg,
-    /// Refine where the light changes: after a solve, split elements whose discretisation
-    /// estimate exceeds --max-error (relative to the mean radiosity) or that a light's shadow
-    /// edge crosses, and solve again, until the estimate meets it, --max-elements is reached
-    /// (a warning says where) or nothing changes; vertex values are not smoothed across shadow
-    /// edges. On by default on the dense transport; on the hierarchical transport (each solve
-    /// links the scene again, at most 3 solves) only when asked (`on`, or --max-elements);
-    /// `off` keeps the uniform mesh.
-    #[arg(long, value_enum, value_name = "on|off")]
-    pub refine: Option<OnOff>,
-    /// The element budget of refinement [default: 2000, the dense crossover; on the
-    /// hierarchical transport the grid's elements plus a quarter where that is more].
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
-    pub max_elements: Option<u64>,
+    /// Reflectances at or above 1 are lowered to R.
+    ///
     /// Reflectances at or above 1 (glTF's default material, a white texture on a white base
     /// colour) reflect all light, which no real surface does and which leaves a closed scene
     /// with an emitter no finite answer: they are lowered to R (one warning names the
     /// materials). Values below 1 stay as authored; 1 keeps them.
-    #[arg(long, value_name = "R", default_value_t = bake_core::DEFAULT_MAX_REFLECTANCE)]
+    #[arg(long, value_name = "R", default_value_t = bake_core::DEFAULT_MAX_REFLECTANCE,
+          help_heading = "Expert")]
     pub max_reflectance: f64,
-
-    /// Hierarchical transport: the largest estimated error of one link's contribution to the
-    /// radiosity of its receiver, relative to the scene's mean radiosity [default: from
-    /// --quality: 0.05 draft, 0.01 normal, 0.002 high].
-    #[arg(long, value_name = "T", value_parser = parse_positive)]
-    pub link_tolerance: Option<f64>,
-
-    /// What to write. `vertex`: OUT holds the element mesh with the radiosity in COLOR_0
-    /// (unlit). `lightmap`: OUT holds the input's polygons (not subdivided) with lit materials,
-    /// TEXCOORD_1 and a MOZ_lightmap PNG (OUT's stem + .lightmap.png), plus OUT's stem +
-    /// .lightmap.exr (linear float irradiance). `both`: OUT holds the vertex bake and OUT's stem
-    /// + .lightmap.gltf (or .glb) the lightmap bake, the images beside it.
-    #[arg(long, value_enum, default_value_t = Target::Both)]
-    pub target: Target,
-    /// Lightmap texel size in world units (default: the scene's bounding-box diagonal / 256).
-    /// Made coarser automatically when the atlases would be larger than --lightmap-max
-    /// (after --lightmap-atlases atlases).
-    #[arg(long, value_name = "L", allow_negative_numbers = true)]
-    pub lightmap_texel: Option<f64>,
-    /// Largest lightmap atlas side, in texels.
-    #[arg(long, value_name = "N", default_value_t = lightmap::DEFAULT_MAX_SIZE,
-          value_parser = clap::value_parser!(u32).range(16..=16384))]
-    pub lightmap_max: u32,
-    /// Most lightmap atlases: when the charts at the texel size do not fit one
-    /// --lightmap-max atlas, whole primitives are packed into several (each its own PNG and
-    /// EXR) before the texel size is made coarser; 1 keeps one atlas.
-    #[arg(long, value_name = "N", default_value_t = lightmap::DEFAULT_MAX_ATLASES,
-          value_parser = clap::value_parser!(u32).range(1..=256))]
-    pub lightmap_atlases: u32,
-    /// Where the lightmap's charts come from. `keep`: the input's TEXCOORD_1 as authored
-    /// (refused when it leaves [0, 1], overlaps within a primitive — or a double-sided face's
-    /// sides would share texels — or a material samples it as a texture set; primitives that
-    /// overlap each other get an atlas each);
-    /// `generate`: one chart per polygon, packed; `auto`: `keep` when the whole scene's
-    /// TEXCOORD_1 is usable, else per primitive: one whose own TEXCOORD_1 is usable keeps it
-    /// in an atlas region of its own (scaled and moved), the others are generated (the
-    /// report's options.lightmap_layout says which and why, per primitive).
-    #[arg(long, value_enum, default_value_t = LightmapUv::Auto)]
-    pub lightmap_uv: LightmapUv,
-
-    /// Write a JSON bake report (options, counts, timings, residuals, every element's
-    /// centroid, normal, area, ρ, e and b in world space).
-    #[arg(long, value_name = "FILE.json")]
-    pub report: Option<PathBuf>,
-    /// What the report says per element: `all` (a summary and every element), `summary`
-    /// (count, area, range and mean of b) or `none` [default: all up to 100 000 elements,
-    /// summary above, with a warning].
-    #[arg(long, value_enum, value_name = "WHICH")]
-    pub report_elements: Option<ReportElements>,
-    /// Save the hierarchical transport's links (form factors and visible fractions) to FILE,
-    /// for re-bakes that change only emission or colours (`--load-links`).
-    #[arg(long, value_name = "FILE")]
+    /// Save the hierarchical transport's links to FILE, for re-bakes.
+    ///
+    /// The links hold form factors and visible fractions; for re-bakes that change only
+    /// emission or colours (`--load-links`).
+    #[arg(long, value_name = "FILE", help_heading = "Expert")]
     pub save_links: Option<PathBuf>,
-    /// Solve with the links saved by `--save-links` instead of linking again; refused unless
-    /// the geometry, mesh and link options are the same.
-    #[arg(long, value_name = "FILE")]
+    /// Solve with the links saved by `--save-links` instead of linking again.
+    ///
+    /// Refused unless the geometry, mesh and link options are the same.
+    #[arg(long, value_name = "FILE", help_heading = "Expert")]
     pub load_links: Option<PathBuf>,
     /// Worker threads (default: all cores). Output bytes do not depend on it.
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024))]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024),
+          help_heading = "Expert")]
     pub threads: Option<u32>,
-    /// Let the scene read files outside its own folder: buffer, image and `mtllib` URIs that
-    /// are absolute, `file:` URIs, or relative paths that leave the folder (`..`, or a link
-    /// inside it that points out). Refused by default, so that a scene only reads where the
-    /// user points (docs/input-handling.md, "Files a scene reads").
-    #[arg(long)]
+    /// Let the scene read files outside its own folder.
+    ///
+    /// Buffer, image and `mtllib` URIs that are absolute, `file:` URIs, or relative paths that
+    /// leave the folder (`..`, or a link inside it that points out). Refused by default, so
+    /// that a scene only reads where the user points (docs/input-handling.md, "Files a scene
+    /// reads").
+    #[arg(long, help_heading = "Expert")]
     pub allow_outside_paths: bool,
-    /// Print nothing but errors (no warnings, progress or summary).
-    #[arg(long, short)]
-    pub quiet: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

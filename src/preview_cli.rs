@@ -43,12 +43,14 @@ struct PreviewCli {
     #[arg(long, value_name = "PX", default_value_t = 512,
           value_parser = clap::value_parser!(u32).range(1..=i64::from(preview::MAX_SIZE)))]
     height: u32,
-    /// Show clamp(_RADIOSITY × X, 0, 1) instead of COLOR_0 (COLOR_0 × X where a primitive
-    /// has no _RADIOSITY).
+    /// Show clamp(_RADIOSITY × X, 0, 1) instead of COLOR_0.
+    ///
+    /// Re-exposes without re-baking; COLOR_0 × X where a primitive has no _RADIOSITY.
     #[arg(long, value_name = "X", allow_negative_numbers = true)]
     exposure: Option<f64>,
-    /// Look along this direction, framing the whole scene (overrides a camera node), e.g.
-    /// `--view 0,-1,-1` to look down at 45°.
+    /// Look along this direction, framing the whole scene.
+    ///
+    /// Overrides a camera node; e.g. `--view 0,-1,-1` to look down at 45°.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_view, allow_hyphen_values = true)]
     view: Option<[f64; 3]>,
     /// Print nothing but errors.
