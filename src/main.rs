@@ -2,13 +2,18 @@
 //! (importer → the `bake` library's one bake → lightmap → exporter); all the work is in the
 //! crates.
 
-mod pipeline;
+mod bars;
 mod preview_cli;
 
+use bake_job::{
+    ContourOptions, ElementsIncluded, EstimatorKind, Exposure, Job, LightmapOptions, Quality,
+    Request, Shading, SolverKind, Subdivision, Target, TransportKind, UvMode,
+};
 use clap::builder::TypedValueParser;
 use clap::{CommandFactory, Parser, ValueEnum};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::str::FromStr;
 
 /// Bakes diffuse global illumination (radiosity) into a glTF scene.
 ///
@@ -40,8 +45,8 @@ pub struct Cli {
     /// rays, as measured in docs/accuracy.md. `draft`: elements of diagonal/8, --max-error 1e-2,
     /// 49 rays; `normal`: diagonal/16, 1e-3, 121 rays; `high`: diagonal/32, 1e-4, 961 rays.
     /// Options given explicitly override the preset.
-    #[arg(long, value_enum, default_value_t = QualityArg::Normal, help_heading = "Accuracy")]
-    pub quality: QualityArg,
+    #[arg(long, value_enum, default_value_t = Quality::Normal, help_heading = "Accuracy")]
+    pub quality: Quality,
     /// Target relative error of the radiosity b, in (0, 1).
     ///
     /// The dense transport's per-pair form-factor tolerance is derived from it and the scene's
@@ -132,7 +137,7 @@ pub struct Cli {
     )]
     pub lightmap_texel: Option<f64>,
     /// Largest lightmap atlas side, in texels.
-    #[arg(long, value_name = "N", default_value_t = lightmap::DEFAULT_MAX_SIZE,
+    #[arg(long, value_name = "N", default_value_t = bake_job::DEFAULT_MAX_SIZE,
           value_parser = clap::value_parser!(u32).range(16..=16384), help_heading = "Lightmap")]
     pub lightmap_max: u32,
     /// Most lightmap atlases before the texel size is made coarser.
@@ -140,7 +145,7 @@ pub struct Cli {
     /// When the charts at the texel size do not fit one --lightmap-max atlas, whole primitives
     /// are packed into several (each its own PNG and EXR) before the texel size is made
     /// coarser; 1 keeps one atlas.
-    #[arg(long, value_name = "N", default_value_t = lightmap::DEFAULT_MAX_ATLASES,
+    #[arg(long, value_name = "N", default_value_t = bake_job::DEFAULT_MAX_ATLASES,
           value_parser = clap::value_parser!(u32).range(1..=256), help_heading = "Lightmap")]
     pub lightmap_atlases: u32,
     /// Where the lightmap's charts come from.
@@ -152,8 +157,8 @@ pub struct Cli {
     /// TEXCOORD_1 is usable, else per primitive: one whose own TEXCOORD_1 is usable keeps it
     /// in an atlas region of its own (scaled and moved), the others are generated (the
     /// report's options.lightmap_layout says which and why, per primitive).
-    #[arg(long, value_enum, default_value_t = LightmapUv::Auto, help_heading = "Lightmap")]
-    pub lightmap_uv: LightmapUv,
+    #[arg(long, value_enum, default_value_t = UvMode::Auto, help_heading = "Lightmap")]
+    pub lightmap_uv: UvMode,
 
     // ---- Output ----
     /// What to write: the vertex bake, the lightmap bake, or both.
@@ -184,7 +189,7 @@ pub struct Cli {
         value_name = "X|auto",
         default_value = "1",
         allow_negative_numbers = true,
-        value_parser = parse_exposure,
+        value_parser = Exposure::from_str,
         help_heading = "Output"
     )]
     pub exposure: Exposure,
@@ -199,7 +204,7 @@ pub struct Cli {
     /// `all` (a summary and every element), `summary` (count, area, range and mean of b) or
     /// `none` [default: all up to 100 000 elements, summary above, with a warning].
     #[arg(long, value_enum, value_name = "WHICH", help_heading = "Output")]
-    pub report_elements: Option<ReportElements>,
+    pub report_elements: Option<ElementsIncluded>,
     /// Print nothing but errors (no warnings, progress or summary).
     #[arg(long, short, help_heading = "Output")]
     pub quiet: bool,
@@ -213,8 +218,8 @@ pub struct Cli {
     /// coarsest node pairs whose estimated error is below --link-tolerance (links grow about
     /// linearly with n). `auto`: dense up to the measured crossover, hierarchical above it; the
     /// report says which and why.
-    #[arg(long, value_enum, default_value_t = TransportArg::Auto, help_heading = "Expert")]
-    pub transport: TransportArg,
+    #[arg(long, value_enum, default_value_t = TransportKind::Auto, help_heading = "Expert")]
+    pub transport: TransportKind,
     /// How to solve (I − ρF) b = e exactly: LU or GMRES.
     ///
     /// `direct`: LU factorisation, O(n³) time and an n×n matrix per distinct reflectance band;
@@ -248,7 +253,7 @@ pub struct Cli {
     /// system exactly (K = 0: direct light from emitters only; the paper's Figure 7). At most
     /// 10000 (each bounce multiplies by the transport once). Not with --solver.
     #[arg(long, value_name = "K", conflicts_with = "solver",
-          value_parser = clap::value_parser!(u32).range(0..=i64::from(bake_core::MAX_BOUNCES)),
+          value_parser = clap::value_parser!(u32).range(0..=i64::from(bake_job::MAX_BOUNCES)),
           help_heading = "Expert")]
     pub bounces: Option<u32>,
     /// How to compute each element pair's form factor.
@@ -259,7 +264,7 @@ pub struct Cli {
     /// centroids. `auto` (the presets' choice): per pair, the cheapest of those whose measured
     /// error bound meets --ff-tolerance.
     #[arg(long, value_enum, value_name = "E", help_heading = "Expert")]
-    pub ff_estimator: Option<EstimatorArg>,
+    pub ff_estimator: Option<EstimatorKind>,
     /// `auto` estimator: largest relative error per element pair, in (0, 1).
     ///
     /// Implies --ff-estimator auto, and overrides the one --max-error derives. Below 1e-8 every
@@ -306,7 +311,7 @@ pub struct Cli {
     /// colour) reflect all light, which no real surface does and which leaves a closed scene
     /// with an emitter no finite answer: they are lowered to R (one warning names the
     /// materials). Values below 1 stay as authored; 1 keeps them.
-    #[arg(long, value_name = "R", default_value_t = bake_core::DEFAULT_MAX_REFLECTANCE,
+    #[arg(long, value_name = "R", default_value_t = bake_job::DEFAULT_MAX_REFLECTANCE,
           help_heading = "Expert")]
     pub max_reflectance: f64,
     /// Save the hierarchical transport's links to FILE, for re-bakes.
@@ -340,97 +345,69 @@ pub enum OnOff {
     Off,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum TransportArg {
-    Auto,
-    Dense,
-    Hierarchical,
-}
-
 impl Cli {
-    /// The bake's options as the library takes them (`None`: from the preset or default).
-    pub fn request(&self) -> bake_core::Request {
-        use bake_core::{EstimatorKind, SolverKind as Kind, TransportKind};
+    /// The job: what to read and write, and the bake's options as the library takes them
+    /// (`None`: from the preset or default).
+    pub fn job(&self) -> Job {
         let subdivision = match (self.subdiv, self.max_element_size) {
-            (Some(n), _) => Some(mesher::Subdivision::Count(n)),
-            (None, Some(l)) => Some(mesher::Subdivision::MaxSize(l)),
+            (Some(n), _) => Some(Subdivision::Count(n)),
+            (None, Some(l)) => Some(Subdivision::MaxSize(l)),
             (None, None) => None,
         };
         let iterative_given = self.tolerance.is_some() || self.max_iterations.is_some();
-        bake_core::Request {
-            quality: self.quality.quality(),
+        let request = Request {
+            quality: self.quality,
             subdivision,
-            contour: form_factor::ContourOptions {
+            contour: ContourOptions {
                 segments: self.ff_segments,
                 order: self.ff_order,
                 auto_order: !self.ff_fixed_order,
                 near_ratio: self.ff_near_ratio,
             },
-            ff_estimator: self.ff_estimator.map(|e| match e {
-                EstimatorArg::Contour => EstimatorKind::Contour,
-                EstimatorArg::PointPolygon => EstimatorKind::PointPolygon,
-                EstimatorArg::PointPoint => EstimatorKind::PointPoint,
-                EstimatorArg::Auto => EstimatorKind::Auto,
-            }),
+            ff_estimator: self.ff_estimator,
             ff_tolerance: self.ff_tolerance,
             max_error: self.max_error,
             ff_points: self.ff_points,
             visibility_samples: self.visibility_samples,
             solver: match (self.solver, iterative_given) {
-                (Some(SolverKind::Direct), _) => Some(Kind::Direct),
-                (Some(SolverKind::Iterative), _) | (None, true) => Some(Kind::Iterative),
+                (Some(kind), _) => Some(kind),
+                (None, true) => Some(SolverKind::Iterative),
                 (None, false) => None,
             },
             bounces: self.bounces,
             tolerance: self.tolerance,
             max_iterations: self.max_iterations,
-            transport: match self.transport {
-                TransportArg::Auto => TransportKind::Auto,
-                TransportArg::Dense => TransportKind::Dense,
-                TransportArg::Hierarchical => TransportKind::Hierarchical,
-            },
+            transport: self.transport,
             link_tolerance: self.link_tolerance,
             light_samples: self.light_samples,
-            irradiance: self.target != Target::Vertex,
-            save_links: self.save_links.is_some(),
+            // Set by the job from the target and the scene.
+            irradiance: false,
+            save_links: false,
             load_links: self.load_links.clone(),
             refine: self.refine.map(|r| r == OnOff::On),
             max_elements: self.max_elements,
             max_reflectance: Some(self.max_reflectance),
+        };
+        Job {
+            input: self.input.clone(),
+            output: self.output.clone(),
+            request,
+            target: self.target,
+            shading: self.shading,
+            exposure: self.exposure,
+            lightmap: LightmapOptions {
+                texel: self.lightmap_texel,
+                max_size: self.lightmap_max,
+                atlases: self.lightmap_atlases,
+                uv: self.lightmap_uv,
+            },
+            keep_lights: self.keep_lights,
+            report: self.report.clone(),
+            report_elements: self.report_elements,
+            save_links: self.save_links.clone(),
+            allow_outside_paths: self.allow_outside_paths,
         }
     }
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum QualityArg {
-    Draft,
-    Normal,
-    High,
-}
-
-impl QualityArg {
-    pub fn quality(self) -> bake_core::presets::Quality {
-        use bake_core::presets::Quality;
-        match self {
-            QualityArg::Draft => Quality::Draft,
-            QualityArg::Normal => Quality::Normal,
-            QualityArg::High => Quality::High,
-        }
-    }
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum EstimatorArg {
-    Contour,
-    PointPolygon,
-    PointPoint,
-    Auto,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum SolverKind {
-    Direct,
-    Iterative,
 }
 
 /// `--tolerance`: a finite number in (0, 1).
@@ -440,22 +417,6 @@ fn parse_tolerance(text: &str) -> Result<f64, String> {
         Ok(t) => Err(format!("must be a number in (0, 1), got {t}")),
         Err(e) => Err(e.to_string()),
     }
-}
-
-/// `--exposure`: `auto`, or a number (checked to be finite and ≥ 0 before the bake).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Exposure {
-    Auto,
-    Value(f64),
-}
-
-fn parse_exposure(text: &str) -> Result<Exposure, String> {
-    if text.eq_ignore_ascii_case("auto") {
-        return Ok(Exposure::Auto);
-    }
-    text.parse::<f64>()
-        .map(Exposure::Value)
-        .map_err(|e| format!("{e} (expected a number or `auto`)"))
 }
 
 /// `--link-tolerance`: a finite number > 0.
@@ -476,47 +437,6 @@ fn parse_near_ratio(text: &str) -> Result<f64, String> {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum ReportElements {
-    All,
-    Summary,
-    None,
-}
-
-/// Above this many elements a report lists no elements unless `--report-elements all` asks
-/// (each costs about 400 bytes of JSON).
-pub const REPORT_ELEMENTS_LIMIT: usize = 100_000;
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Target {
-    Vertex,
-    Lightmap,
-    Both,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum LightmapUv {
-    Auto,
-    Keep,
-    Generate,
-}
-
-impl LightmapUv {
-    pub fn mode(self) -> lightmap::UvMode {
-        match self {
-            LightmapUv::Auto => lightmap::UvMode::Auto,
-            LightmapUv::Keep => lightmap::UvMode::Keep,
-            LightmapUv::Generate => lightmap::UvMode::Generate,
-        }
-    }
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Shading {
-    Smooth,
-    Flat,
-}
-
 fn main() -> ExitCode {
     if std::env::args_os().nth(1).is_some_and(|a| a == "preview") {
         return preview_cli::main(std::env::args_os().skip(1));
@@ -529,10 +449,28 @@ fn main() -> ExitCode {
             return ExitCode::from(code);
         }
     };
-    match pipeline::run(&cli) {
-        Ok(()) => ExitCode::SUCCESS,
+    if let Some(threads) = cli.threads {
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads as usize)
+            .build_global()
+        {
+            eprintln!("bake: error: cannot start {threads} worker threads: {e}");
+            return ExitCode::from(3);
+        }
+    }
+    let bars = bars::Bars::new(cli.quiet);
+    let done = bake_job::run(&cli.job(), &bars);
+    // A bar still open when the bake stops early is cleared, so the error line stands alone.
+    drop(bars);
+    match done {
+        Ok(done) => {
+            if !cli.quiet {
+                eprintln!("bake: {}", done.summary);
+            }
+            ExitCode::SUCCESS
+        }
         Err(failure) => {
-            eprintln!("bake: error: {}", one_line(&failure.error));
+            eprintln!("bake: error: {}", failure.line());
             ExitCode::from(failure.code)
         }
     }
@@ -541,7 +479,7 @@ fn main() -> ExitCode {
 /// `--tolerance` and `--max-iterations` tune the iterative solver only: a usage error otherwise
 /// (rather than silently ignoring them).
 fn check_solver_options(cli: Cli) -> Result<Cli, clap::Error> {
-    if cli.ff_tolerance.is_some() && cli.ff_estimator.is_some_and(|e| e != EstimatorArg::Auto) {
+    if cli.ff_tolerance.is_some() && cli.ff_estimator.is_some_and(|e| e != EstimatorKind::Auto) {
         return Err(Cli::command().error(
             clap::error::ErrorKind::ArgumentConflict,
             "--ff-tolerance applies only to --ff-estimator auto",
@@ -564,22 +502,4 @@ fn check_solver_options(cli: Cli) -> Result<Cli, clap::Error> {
         }
     }
     Ok(cli)
-}
-
-/// The error and its causes on one line, `: `-separated. A cause whose text the line already
-/// holds is left out: the crates' messages often embed their source (`cannot read X: {io}`).
-fn one_line(error: &anyhow::Error) -> String {
-    let mut line = String::new();
-    for cause in error.chain() {
-        let text = cause.to_string();
-        let text = text.split_whitespace().collect::<Vec<_>>().join(" ");
-        if line.contains(&text) {
-            continue;
-        }
-        if !line.is_empty() {
-            line.push_str(": ");
-        }
-        line.push_str(&text);
-    }
-    line
 }

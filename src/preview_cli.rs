@@ -37,11 +37,11 @@ struct PreviewCli {
     output: PathBuf,
     /// Image width in pixels.
     #[arg(long, value_name = "PX", default_value_t = 512,
-          value_parser = clap::value_parser!(u32).range(1..=i64::from(preview::MAX_SIZE)))]
+          value_parser = clap::value_parser!(u32).range(1..=i64::from(bake_job::preview::MAX_SIZE)))]
     width: u32,
     /// Image height in pixels.
     #[arg(long, value_name = "PX", default_value_t = 512,
-          value_parser = clap::value_parser!(u32).range(1..=i64::from(preview::MAX_SIZE)))]
+          value_parser = clap::value_parser!(u32).range(1..=i64::from(bake_job::preview::MAX_SIZE)))]
     height: u32,
     /// Show clamp(_RADIOSITY × X, 0, 1) instead of COLOR_0.
     ///
@@ -105,8 +105,10 @@ fn run(cli: &PreviewCli) -> Result<(), (u8, String)> {
         ));
     }
     let colors = match cli.exposure {
-        None => preview::ColorSource::Color0,
-        Some(x) if x.is_finite() && x >= 0.0 => preview::ColorSource::Radiosity { exposure: x },
+        None => bake_job::preview::ColorSource::Color0,
+        Some(x) if x.is_finite() && x >= 0.0 => {
+            bake_job::preview::ColorSource::Radiosity { exposure: x }
+        }
         Some(x) => {
             return Err((
                 1,
@@ -114,17 +116,18 @@ fn run(cli: &PreviewCli) -> Result<(), (u8, String)> {
             ))
         }
     };
-    let options = preview::Options {
+    let options = bake_job::preview::Options {
         width: cli.width,
         height: cli.height,
         colors,
         view: cli.view,
-        ..preview::Options::default()
+        ..bake_job::preview::Options::default()
     };
-    let code = |e: &preview::PreviewError| if e.is_input_error() { 1 } else { 3 };
-    let rendered =
-        preview::render_file(&cli.input, &options).map_err(|e| (code(&e), e.to_string()))?;
-    preview::write_png(&cli.output, &rendered.image).map_err(|e| (code(&e), e.to_string()))?;
+    let code = |e: &bake_job::preview::PreviewError| if e.is_input_error() { 1 } else { 3 };
+    let rendered = bake_job::preview::render_file(&cli.input, &options)
+        .map_err(|e| (code(&e), e.to_string()))?;
+    bake_job::preview::write_png(&cli.output, &rendered.image)
+        .map_err(|e| (code(&e), e.to_string()))?;
     if !cli.quiet {
         if rendered.skipped_primitives > 0 {
             eprintln!(

@@ -3,7 +3,7 @@
 //!
 //! Not errors: each of these bakes, and may be what the author meant.
 
-use importer::{LightKind, Scene};
+use scene::{LightKind, Scene};
 
 /// A point or spot light that puts less than this share of its flux on any surface facing
 /// it is probably inside or behind geometry (a bulb inside a closed lampshade, a light under
@@ -20,7 +20,7 @@ pub fn emissive_is_base_colour(scene: &Scene) -> Option<String> {
             *u = true;
         }
     }
-    let image = |reference: &Option<importer::TextureRef>| {
+    let image = |reference: &Option<scene::TextureRef>| {
         reference
             .as_ref()
             .and_then(|r| scene.textures.get(r.texture))

@@ -19,6 +19,7 @@ pub mod error;
 pub mod presets;
 pub mod refine;
 mod settings;
+mod transports;
 
 pub use settings::{
     EstimatorKind, Request, Settings, Solve, SolverKind, TransportKind, DEFAULT_MAX_REFLECTANCE,
@@ -26,12 +27,12 @@ pub use settings::{
 };
 
 pub use accuracy::Accuracy;
-use form_factor::{Estimator, FormFactors, Occluders, Occlusion};
-use importer::Scene;
+use form_factor::{Estimator, Occluders};
 use mesher::ElementMesh;
+use scene::Scene;
 use solver::{EnergyBalance, Solution, SolveError, BANDS};
 use std::time::Instant;
-use transport::{HierarchicalOptions, HierarchicalTransport, LinkError, LinkProgress, Transport};
+use transport::{HierarchicalTransport, Transport};
 
 /// Why a bake failed. [`BakeError::is_input`] tells bad input (exit 1) from internal errors.
 #[derive(Debug, thiserror::Error)]
@@ -206,6 +207,32 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     refine::refine(scene, settings, progress, first)
 }
 
+/// Each stage's wall time (s) and the peak memory (MiB) when it ended, in order.
+pub(crate) struct Stages {
+    timings: Vec<(&'static str, f64)>,
+    peak_rss_mib: Vec<(&'static str, f64)>,
+    lap: Instant,
+}
+
+impl Stages {
+    fn new() -> Stages {
+        Stages {
+            timings: Vec::new(),
+            peak_rss_mib: Vec::new(),
+            lap: Instant::now(),
+        }
+    }
+
+    /// The stage `name` ends now; the next begins.
+    pub(crate) fn record(&mut self, name: &'static str) {
+        self.timings.push((name, self.lap.elapsed().as_secs_f64()));
+        if let Some(mib) = peak_rss_mib_now() {
+            self.peak_rss_mib.push((name, mib));
+        }
+        self.lap = Instant::now();
+    }
+}
+
 /// One bake on the mesher's grids (`given` = `None`) or on a given (refined) element mesh,
 /// which the dense transport takes as it is.
 pub(crate) fn run_mesh(
@@ -214,20 +241,121 @@ pub(crate) fn run_mesh(
     progress: &dyn Progress,
     given: Option<ElementMesh>,
 ) -> Result<Bake, BakeError> {
-    let mut timings = Vec::new();
-    let mut peak_rss_mib = Vec::new();
-    let mut lap = Instant::now();
-    let mut stage = |name: &'static str, lap: &mut Instant| {
-        timings.push((name, lap.elapsed().as_secs_f64()));
-        if let Some(mib) = peak_rss_mib_now() {
-            peak_rss_mib.push((name, mib));
-        }
-        *lap = Instant::now();
-    };
+    let mut stages = Stages::new();
     let mut warnings = Vec::new();
+    let (mesh, mut transport, solve) = plan_and_mesh(scene, settings, given, &mut warnings)?;
+    let (mut rho, emission) = element_values(scene, &mesh);
+    warnings.extend(limit_reflectance(
+        scene,
+        &mesh,
+        &mut rho,
+        settings.max_reflectance,
+    ));
+    let rho_max = rho.iter().flatten().copied().fold(0.0f64, f64::max);
+    if scene.lights.is_empty() && emission.iter().all(|x| x.iter().all(|&v| v == 0.0)) {
+        warnings.push(advice::no_light());
+    }
+    warnings.extend(advice::emissive_is_base_colour(scene));
+    stages.record("mesh");
 
-    // The cost first, from the element count alone: a request too large for this machine is
-    // refused before anything is allocated.
+    let cutouts = cutouts(scene);
+    let occluders = Occluders::new(&scene.polygons)?.with_cutouts(cutouts);
+    stages.record("visibility_setup");
+
+    let light = Light::of(
+        scene, &mesh, &occluders, &rho, &emission, settings, progress,
+    );
+    warnings.extend(advice::lights_reaching_little(scene, &light.lit.stats));
+    if !scene.lights.is_empty() {
+        stages.record("direct_light");
+    }
+    let dark = light.source.iter().all(|s| s.iter().all(|&v| v == 0.0));
+    if dark && settings.save_links {
+        warnings.push(
+            "--save-links writes no file: nothing emits or reflects direct light, so no links \
+             were built"
+                .to_string(),
+        );
+    }
+    // The dense transport's estimator: `auto`'s tolerance from the target and ρ_max.
+    let estimator = match transport.kind {
+        TransportKind::Hierarchical => settings.estimator,
+        _ => settings.dense_estimator(rho_max),
+    };
+    let problem = transports::Problem {
+        scene,
+        settings,
+        mesh: &mesh,
+        occluders: &occluders,
+        rho: &rho,
+        emission: &emission,
+        external: &light.external,
+        source: &light.source,
+        rho_max,
+        solve,
+        estimator,
+    };
+    let done = if dark {
+        transport.reason = format!(
+            "{}; not built: nothing emits or reflects direct light, so b = 0 exactly",
+            transport.reason
+        );
+        transports::dark(&problem)?
+    } else if transport.kind == TransportKind::Hierarchical {
+        transports::hierarchical(&problem, progress, &mut stages)?
+    } else {
+        transports::dense(&problem, progress, &mut stages, &mut warnings)?
+    };
+    stages.record("energy");
+
+    let accuracy = accuracy_of(settings, &transport, estimator, rho_max, &done);
+    let error = estimate_error(&problem, &done);
+    stages.record("error_estimate");
+
+    let transports::Transported {
+        solution,
+        irradiance,
+        energy,
+        counts,
+        effects,
+        saved_links,
+        ..
+    } = done;
+    Ok(Bake {
+        error,
+        mesh,
+        rho,
+        emission,
+        direct: light.direct,
+        light_stats: light.lit.stats,
+        partly_lit: light.lit.partly_lit,
+        shadow_class: light.lit.shadow_class,
+        refinement: refine::Refinement::default(),
+        solution,
+        solve,
+        irradiance,
+        energy,
+        counts,
+        effects,
+        transport,
+        estimator,
+        accuracy,
+        timings: stages.timings,
+        peak_rss_mib: stages.peak_rss_mib,
+        saved_links,
+        warnings,
+    })
+}
+
+/// The cost first, from the element count alone (a request too large for this machine is
+/// refused before anything is allocated), the transport and solver it calls for, then the
+/// mesh.
+fn plan_and_mesh(
+    scene: &Scene,
+    settings: &Settings,
+    given: Option<ElementMesh>,
+    warnings: &mut Vec<String>,
+) -> Result<(ElementMesh, TransportChoice, Solve), BakeError> {
     let planned = match &given {
         Some(mesh) => mesh.elements.len() as u64,
         None => mesher::element_count(&scene.polygons, settings.subdivision)?,
@@ -235,7 +363,7 @@ pub(crate) fn run_mesh(
     let rho_bound = scene_rho_bound(scene, settings.max_reflectance);
     // A refined mesh is chosen for like the grids: both transports take it (the hierarchical
     // one's trees continue below the grid elements into their quarters).
-    let mut transport = choose_transport(
+    let transport = choose_transport(
         settings,
         usize::try_from(planned).unwrap_or(usize::MAX),
         rho_bound,
@@ -255,289 +383,74 @@ pub(crate) fn run_mesh(
         Some(mesh) => mesh,
         None => mesher::mesh(&scene.polygons, settings.subdivision)?,
     };
-    let n = mesh.elements.len();
-    let (mut rho, emission) = element_values(scene, &mesh);
-    warnings.extend(limit_reflectance(
-        scene,
-        &mesh,
-        &mut rho,
-        settings.max_reflectance,
-    ));
-    let rho_max = rho.iter().flatten().copied().fold(0.0f64, f64::max);
-    if scene.lights.is_empty() && emission.iter().all(|x| x.iter().all(|&v| v == 0.0)) {
-        warnings.push(advice::no_light());
-    }
-    warnings.extend(advice::emissive_is_base_colour(scene));
-    stage("mesh", &mut lap);
+    Ok((mesh, transport, solve))
+}
 
-    let cutouts = cutouts(scene);
-    let occluders = Occluders::new(&scene.polygons)?.with_cutouts(cutouts);
-    stage("visibility_setup", &mut lap);
+/// Punctual lights: E per element, its irradiance E/π in b's unit (a diffuse surface under
+/// illuminance E has exitance ρE, luminance ρE/π), and the source term e + ρE/π.
+struct Light {
+    lit: direct::DirectLight,
+    /// H⁰ = E / π.
+    external: Vec<[f64; BANDS]>,
+    /// ρ H⁰.
+    direct: Vec<[f64; BANDS]>,
+    /// e + ρ H⁰.
+    source: Vec<[f64; BANDS]>,
+}
 
-    // Punctual lights: E per element, its irradiance E/π in b's unit (a diffuse surface under
-    // illuminance E has exitance ρE, luminance ρE/π), and the source term e + ρE/π.
-    progress.start("direct light", scene.lights.len() as u64);
-    let lit = direct::illuminate(
-        &scene.lights,
-        &mesh,
-        &occluders,
-        &direct::Options {
-            samples: settings.light_samples,
-        },
-    );
-    progress.finish();
-    warnings.extend(advice::lights_reaching_little(scene, &lit.stats));
-    let external: Vec<[f64; BANDS]> = lit
-        .illuminance
-        .iter()
-        .map(|e| e.map(|v| v / std::f64::consts::PI))
-        .collect();
-    let direct: Vec<[f64; BANDS]> = external
-        .iter()
-        .zip(&rho)
-        .map(|(h, r)| [r[0] * h[0], r[1] * h[1], r[2] * h[2]])
-        .collect();
-    let source: Vec<[f64; BANDS]> = emission
-        .iter()
-        .zip(&direct)
-        .map(|(e, d)| [e[0] + d[0], e[1] + d[1], e[2] + d[2]])
-        .collect();
-    if !scene.lights.is_empty() {
-        stage("direct_light", &mut lap);
-    }
-    // Nothing emits and no surface reflects a light's direct light: b = 0 is the exact
-    // solution, and no transport needs building (a large scene without emitters would
-    // otherwise build its whole matrix or hierarchy to find zeros).
-    let dark = source.iter().all(|s| s.iter().all(|&v| v == 0.0));
-    let mut saved_links = None;
-    if dark && settings.save_links {
-        warnings.push(
-            "--save-links writes no file: nothing emits or reflects direct light, so no links \
-             were built"
-                .to_string(),
+impl Light {
+    fn of(
+        scene: &Scene,
+        mesh: &ElementMesh,
+        occluders: &Occluders,
+        rho: &[[f64; BANDS]],
+        emission: &[[f64; BANDS]],
+        settings: &Settings,
+        progress: &dyn Progress,
+    ) -> Light {
+        progress.start("direct light", scene.lights.len() as u64);
+        let lit = direct::illuminate(
+            &scene.lights,
+            mesh,
+            occluders,
+            &direct::Options {
+                samples: settings.light_samples,
+            },
         );
-    }
-    // The dense transport's estimator: `auto`'s tolerance from the target and ρ_max.
-    let estimator = match transport.kind {
-        TransportKind::Hierarchical => settings.estimator,
-        _ => settings.dense_estimator(rho_max),
-    };
-    // Polygons some polygon may shadow (shadow rays decided part of their light), and the
-    // rays per pair, for the error estimate.
-    let mut sampled_polygons = vec![false; scene.polygons.len()];
-    // The dense transport's row-sum limit (what geometry would have created).
-    let mut row_sums = None;
-    let mut samples = 0;
-    let (solution, irradiance, energy, counts, effects) = if dark {
-        transport.reason = format!(
-            "{}; not built: nothing emits or reflects direct light, so b = 0 exactly",
-            transport.reason
-        );
-        let solution = Solution {
-            b: vec![[0.0; BANDS]; n],
-            residual: [0.0; BANDS],
-            residual_relative: [false; BANDS],
-            factorizations: 0,
-            condition: [None; BANDS],
-            iterations: [0; BANDS],
-        };
-        let (irradiance, energy) = finish(
-            &NoTransport(n),
-            &mesh,
-            &rho,
-            &emission,
-            &external,
-            &solution,
-            settings,
-        )?;
-        let effects = visibility::Effects {
-            occlusion: false,
-            reason: "no light to transport: no shadow rays".into(),
-        };
-        (solution, irradiance, energy, Counts::default(), effects)
-    } else {
-        match transport.kind {
-            TransportKind::Hierarchical => {
-                let max_links = available_memory().map_or(u64::MAX, |bytes| {
-                    bytes / transport::hierarchical::BYTES_PER_LINK
-                });
-                let options = HierarchicalOptions {
-                    link_tolerance: settings.link_tolerance,
-                    samples: settings.link_samples,
-                    estimator: settings.estimator,
-                    contour: settings.contour,
-                    passes: LINK_PASSES,
-                    max_links,
-                };
-                // Hashing every polygon only when links are saved or loaded.
-                let key = if settings.save_links || settings.load_links.is_some() {
-                    links_key(scene, &mesh, settings)
-                } else {
-                    0
-                };
-                let built = if let Some(path) = &settings.load_links {
-                    progress.start("loading links", 0);
-                    let loaded = load_links(path, scene, &mesh, key);
-                    progress.finish();
-                    Some(loaded?)
-                } else {
-                    None
-                };
-                let loaded = built.is_some();
-                let h = match built {
-                    Some(h) => h,
-                    None => {
-                        progress.start("links", scene.polygons.len() as u64);
-                        let built = HierarchicalTransport::build(
-                            &scene.polygons,
-                            &mesh,
-                            &occluders,
-                            &rho,
-                            &source,
-                            &options,
-                            &|step| match step {
-                                LinkProgress::Polygons(k) | LinkProgress::Links(k) => {
-                                    progress.advance(k)
-                                }
-                                LinkProgress::Pass { pass, links } => {
-                                    progress.finish();
-                                    progress.start(&format!("links pass {pass}"), links);
-                                }
-                            },
-                        );
-                        progress.finish();
-                        built.map_err(|e| match e {
-                            LinkError::Solve(e) => explain_refusal(
-                                BakeError::Solve(e),
-                                settings,
-                                settings.estimator,
-                                rho_max,
-                            ),
-                            e => BakeError::TooLarge(e.to_string()),
-                        })?
-                    }
-                };
-                stage("links", &mut lap);
-                let s = h.stats();
-                let counts = Counts {
-                    // Integrated node pairs (the kept links); screened pairs are in the stats.
-                    pairs_evaluated: s.by_method.iter().sum(),
-                    pairs_tested: s.pairs_tested,
-                    pairs_occludable: s.pairs_occludable,
-                    rays_cast: s.rays_cast,
-                    kernel_evaluations: s.kernel_evaluations,
-                    pairs_contour: s.by_method[0],
-                    pairs_point_polygon: s.by_method[1],
-                    pairs_point_point: s.by_method[2],
-                    links: s.links,
-                    nodes: s.nodes,
-                    passes: s.passes,
-                    blocked_links: s.blocked_links,
-                    polygon_pairs: s.polygon_pairs,
-                    clusters_dropped: s.clusters_dropped,
-                };
-                let effects = visibility::Effects {
-                    occlusion: s.pairs_occludable > 0,
-                    reason: if loaded {
-                        "links loaded: their visible fractions are those computed when they \
-                         were saved"
-                            .to_string()
-                    } else if s.pairs_occludable > 0 {
-                        format!(
-                            "{} of the {} node pairs tested may be partly hidden by another \
-                         polygon: shadow rays were cast for them",
-                            s.pairs_occludable, s.pairs_tested
-                        )
-                    } else {
-                        format!(
-                            "no polygon can come between any of the {} node pairs tested: no rays \
-                         are cast",
-                            s.pairs_tested
-                        )
-                    },
-                };
-                let solution = solve_with(&h, solve, &rho, &source, progress)
-                    .map_err(|e| explain_refusal(e, settings, settings.estimator, rho_max))?;
-                if s.pairs_occludable > 0 {
-                    // The hierarchy keeps no per-polygon record: every element is charged.
-                    sampled_polygons.fill(true);
-                    samples = settings.link_samples;
-                }
-                stage("solve", &mut lap);
-                let (irradiance, energy) =
-                    finish(&h, &mesh, &rho, &emission, &external, &solution, settings)?;
-                if settings.save_links {
-                    saved_links = Some(SavedLinks { key, transport: h });
-                }
-                (solution, irradiance, energy, counts, effects)
-            }
-            _ => {
-                // Dense: every element pair, exact (or within the estimator's tolerance).
-                check_memory(n as u64, TransportKind::Dense, solve, distinct_bands(&rho))?;
-                // The occlusion pre-pass (polygon pairs × candidate occluders) can take seconds.
-                progress.start("occlusion", occluders.len() as u64);
-                let occludable = occluders.occludable_pairs_with_progress(&|k| progress.advance(k));
-                progress.finish();
-                let effects = occludable.effects();
-                for &(p, q) in occludable.pairs() {
-                    for k in [p, q] {
-                        if let Some(s) = sampled_polygons.get_mut(k as usize) {
-                            *s = true;
-                        }
-                    }
-                }
-                samples = settings.visibility_samples;
-                stage("occludable_pairs", &mut lap);
-                let mut form_factors =
-                    FormFactors::new(&mesh, settings.contour).with_estimator(estimator);
-                if effects.occlusion {
-                    form_factors = form_factors.with_occlusion(Occlusion {
-                        occluders: &occluders,
-                        pairs: &occludable,
-                        samples: settings.visibility_samples,
-                    });
-                }
-                progress.start("form factors", n as u64);
-                let mut matrix = form_factors.dense_with_progress(&|rows| progress.advance(rows));
-                progress.finish();
-                // Geometry never creates light: rows past 1 (coincident or interpenetrating
-                // surfaces) are scaled to 1, reciprocity kept.
-                let limited =
-                    matrix.limit_row_sums(estimator.row_sum_accuracy().max(ROW_SUM_WARNING_MARGIN));
-                warnings.extend(row_sum_warning(scene, &mesh, &limited.beyond_margin));
-                row_sums = Some(limited);
-                stage("form_factors", &mut lap);
-                let stats = matrix.stats;
-                let counts = Counts {
-                    pairs_evaluated: stats.pairs_integrated,
-                    pairs_tested: stats.visibility.pairs_tested,
-                    pairs_occludable: stats.visibility.pairs_occludable,
-                    rays_cast: stats.visibility.rays_cast,
-                    kernel_evaluations: stats.evaluations,
-                    pairs_contour: stats.pairs_by_method.contour,
-                    pairs_point_polygon: stats.pairs_by_method.point_polygon,
-                    pairs_point_point: stats.pairs_by_method.point_point,
-                    ..Counts::default()
-                };
-                let f = solver::DenseMatrix::new(n, &matrix.data)
-                    .map_err(BakeError::Internal)?
-                    .with_accuracy(estimator.row_sum_accuracy());
-                let solution = match solve {
-                    Solve::Direct => {
-                        solver::solve_direct(&f, &rho, &source).map_err(BakeError::Solve)
-                    }
-                    _ => solve_with(&f, solve, &rho, &source, progress),
-                }
-                .map_err(|e| explain_refusal(e, settings, estimator, rho_max))?;
-                stage("solve", &mut lap);
-                let (irradiance, energy) =
-                    finish(&f, &mesh, &rho, &emission, &external, &solution, settings)?;
-                (solution, irradiance, energy, counts, effects)
-            }
+        progress.finish();
+        let external: Vec<[f64; BANDS]> = lit
+            .illuminance
+            .iter()
+            .map(|e| e.map(|v| v / std::f64::consts::PI))
+            .collect();
+        let direct: Vec<[f64; BANDS]> = external
+            .iter()
+            .zip(rho)
+            .map(|(h, r)| [r[0] * h[0], r[1] * h[1], r[2] * h[2]])
+            .collect();
+        let source: Vec<[f64; BANDS]> = emission
+            .iter()
+            .zip(&direct)
+            .map(|(e, d)| [e[0] + d[0], e[1] + d[1], e[2] + d[2]])
+            .collect();
+        Light {
+            lit,
+            external,
+            direct,
+            source,
         }
-    };
-    stage("energy", &mut lap);
+    }
+}
 
+/// What the bake's accuracy rests on: the target, ρ_max, the form factors' stated accuracy,
+/// the condition bound and the dense rows that were limited.
+fn accuracy_of(
+    settings: &Settings,
+    transport: &TransportChoice,
+    estimator: Estimator,
+    rho_max: f64,
+    done: &transports::Transported,
+) -> Accuracy {
     let row_sum_accuracy = estimator.row_sum_accuracy();
     let chosen_tolerance = match estimator {
         Estimator::Auto { tolerance }
@@ -547,36 +460,45 @@ pub(crate) fn run_mesh(
         }
         _ => None,
     };
-    let accuracy = Accuracy {
+    Accuracy {
         max_error: settings.max_error,
         rho_max,
         chosen_tolerance,
         row_sum_accuracy,
         condition_bound: accuracy::condition_bound(rho_max, row_sum_accuracy),
-        error_bound: solution
+        error_bound: done
+            .solution
             .condition
             .map(|c| c.map(|c| c * rho_max * row_sum_accuracy)),
-        row_sums: row_sums.map(|l: form_factor::RowSumLimit| accuracy::RowSums {
-            largest_before: l.largest,
-            largest_after: l.largest_after,
-            scaled: l.scaled,
-            seen_twice: l.beyond_margin.len(),
-        }),
-    };
+        row_sums: done
+            .row_sums
+            .as_ref()
+            .map(|l: &form_factor::RowSumLimit| accuracy::RowSums {
+                largest_before: l.largest,
+                largest_after: l.largest_after,
+                scaled: l.scaled,
+                seen_twice: l.beyond_margin.len(),
+            }),
+    }
+}
 
-    let sampled: Vec<bool> = mesh
+/// The per-element error estimate of the solved bake.
+fn estimate_error(p: &transports::Problem, done: &transports::Transported) -> Vec<error::Parts> {
+    let solution = &done.solution;
+    let sampled: Vec<bool> = p
+        .mesh
         .elements
         .iter()
-        .map(|e| sampled_polygons.get(e.polygon as usize) == Some(&true))
+        .map(|e| done.sampled_polygons.get(e.polygon as usize) == Some(&true))
         .collect();
-    let error = error::estimate(&error::Inputs {
-        mesh: &mesh,
+    error::estimate(&error::Inputs {
+        mesh: p.mesh,
         b: &solution.b,
-        rho: &rho,
-        source: &source,
-        row_sum_accuracy,
+        rho: p.rho,
+        source: p.source,
+        row_sum_accuracy: p.estimator.row_sum_accuracy(),
         condition: solution.condition.map(|c| c.unwrap_or(1.0)),
-        rho_max,
+        rho_max: p.rho_max,
         residual: [0, 1, 2].map(|c| {
             if solution.residual_relative[c] {
                 solution.residual[c]
@@ -585,33 +507,7 @@ pub(crate) fn run_mesh(
             }
         }),
         sampled: &sampled,
-        samples,
-    });
-    stage("error_estimate", &mut lap);
-
-    Ok(Bake {
-        error,
-        mesh,
-        rho,
-        emission,
-        direct,
-        light_stats: lit.stats,
-        partly_lit: lit.partly_lit,
-        shadow_class: lit.shadow_class,
-        refinement: refine::Refinement::default(),
-        solution,
-        solve,
-        irradiance,
-        energy,
-        counts,
-        effects,
-        transport,
-        estimator,
-        accuracy,
-        timings,
-        peak_rss_mib,
-        saved_links,
-        warnings,
+        samples: done.samples,
     })
 }
 
@@ -1105,7 +1001,7 @@ fn scene_bands(scene: &Scene) -> usize {
             *u = true;
         }
     }
-    let materials: Vec<&importer::Material> = scene
+    let materials: Vec<&scene::Material> = scene
         .materials
         .iter()
         .zip(&used)
@@ -1139,7 +1035,7 @@ pub fn available_memory() -> Option<u64> {
 /// wrapped by its sampler) at the point's texture coordinates.
 fn cutouts(scene: &Scene) -> Vec<Option<visibility::Cutout>> {
     // One shared copy of each masked image.
-    let mut shared: std::collections::HashMap<usize, std::sync::Arc<importer::Image>> =
+    let mut shared: std::collections::HashMap<usize, std::sync::Arc<scene::Image>> =
         std::collections::HashMap::new();
     scene
         .polygons
@@ -1186,7 +1082,7 @@ pub fn element_values(scene: &Scene, mesh: &ElementMesh) -> (Vec<[f64; BANDS]>, 
             let polygon = el.polygon as usize;
             let m = &scene.materials[scene.polygons[polygon].material];
             let uv = scene.uvs.get(polygon).and_then(Option::as_ref);
-            let textured = |factor: [f64; BANDS], reference: &Option<importer::TextureRef>| {
+            let textured = |factor: [f64; BANDS], reference: &Option<scene::TextureRef>| {
                 let (Some(reference), Some(uv)) = (reference, uv) else {
                     return factor;
                 };

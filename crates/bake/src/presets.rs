@@ -7,10 +7,11 @@
 //! each preset's error and time there.
 
 use form_factor::Estimator;
-use importer::Polygon;
+use scene::Polygon;
 
 /// The presets, from cheapest to most accurate.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Quality {
     Draft,
     Normal,

@@ -23,7 +23,7 @@
 //! so smoothing never blends lit and shadowed elements.
 
 use crate::{error, run_mesh, Bake, BakeError, Progress, Settings, TransportKind};
-use importer::Scene;
+use scene::Scene;
 use std::time::Instant;
 
 /// Elements are split at most this many times below the mesher's grid (to 1/32 of its size).
@@ -164,6 +164,142 @@ fn where_above(scene: &Scene, bake: &Bake, elements: &[usize]) -> String {
     )
 }
 
+/// Why `bake` is not refined at all, if it is not: refinement off, links saved or loaded, or
+/// a hierarchical bake that did not ask for it.
+fn not_refined(settings: &Settings, bake: &Bake) -> Option<&'static str> {
+    if !settings.refine {
+        return Some("--refine off");
+    }
+    if settings.save_links || settings.load_links.is_some() {
+        // Saved links are keyed by the grids (and loaded ones were made over them).
+        return Some("not refined: --save-links and --load-links keep the grids");
+    }
+    let hierarchical = bake.transport.kind == TransportKind::Hierarchical;
+    if hierarchical && !settings.refine_requested && settings.max_elements.is_none() {
+        // Each solve of a refining hierarchical bake links the whole scene again: a
+        // walkthrough's default bake stays one solve, and `--refine on` asks for more.
+        return Some(
+            "not refined by default on the hierarchical transport (each refinement solve links \
+             the scene again): --refine on or --max-elements asks for it",
+        );
+    }
+    None
+}
+
+/// What one refinement pass decides.
+enum Step {
+    /// Split the first this many of the wanted elements.
+    Split(usize),
+    /// Stop: how many elements are still above the target, why (for the report), and the
+    /// warning that says where (when `--max-error` or `--max-elements` was asked for).
+    Stop {
+        above: usize,
+        stopped: String,
+        warning: Option<String>,
+    },
+}
+
+/// Whether to split and how many, within the element `budget` and `max_passes` solves.
+fn step(
+    scene: &Scene,
+    settings: &Settings,
+    bake: &Bake,
+    m: &Marks,
+    (budget, passes, max_passes): (u64, u32, u32),
+) -> Step {
+    let n = bake.mesh.elements.len();
+    let warn = settings.warn_refinement;
+    if m.wanted.is_empty() {
+        if m.at_finest == 0 {
+            return Step::Stop {
+                above: 0,
+                stopped: "the estimate meets the target".to_string(),
+                warning: None,
+            };
+        }
+        let at: Vec<usize> = (0..n)
+            .filter(|&i| {
+                m.priority[i] > 1.0
+                    && bake.mesh.level(i) >= settings.refine_levels
+                    && bake.partly_lit.get(i) != Some(&true)
+            })
+            .collect();
+        return Step::Stop {
+            above: m.at_finest,
+            stopped: "finest level reached".to_string(),
+            warning: warn.then(|| {
+                format!(
+                    "refinement reached its finest elements (1/{} of the grid's) with {} elements \
+                 still above --max-error {:e}: {}",
+                    1u64 << settings.refine_levels.min(63),
+                    m.at_finest,
+                    settings.max_error,
+                    where_above(scene, bake, &at)
+                )
+            }),
+        };
+    }
+    let room = (budget.saturating_sub(n as u64) / 3) as usize;
+    if room == 0 || passes + 1 >= max_passes {
+        let why = if room == 0 {
+            format!("the element budget --max-elements {budget}")
+        } else {
+            format!("{max_passes} solves")
+        };
+        return Step::Stop {
+            above: m.wanted.len() + m.at_finest,
+            warning: warn.then(|| {
+                format!(
+                    "refinement stopped at {why} ({n} elements) with {} elements still above \
+                 --max-error {:e}: {}",
+                    m.wanted.len(),
+                    settings.max_error,
+                    where_above(scene, bake, &m.wanted)
+                )
+            }),
+            stopped: format!("stopped at {why}"),
+        };
+    }
+    // Where the budget cuts, elements tied with the first one left out (within 1e-9: mirror
+    // images of a symmetric scene) are left out too, so that refinement keeps symmetries.
+    let mut chosen = m.wanted.len().min(room);
+    if chosen < m.wanted.len() {
+        let cut = m.priority[m.wanted[chosen]] * (1.0 + 1e-9);
+        chosen = m.wanted[..chosen]
+            .iter()
+            .take_while(|&&i| m.priority[i] > cut)
+            .count();
+    }
+    if chosen > 0 {
+        return Step::Split(chosen);
+    }
+    Step::Stop {
+        above: m.wanted.len() + m.at_finest,
+        warning: warn.then(|| {
+            format!(
+                "refinement stopped at the element budget --max-elements {} ({n} elements): \
+             splitting any of the {} elements above --max-error {:e} (tied, e.g. mirror \
+             images) would pass it: {}",
+                budget,
+                m.wanted.len(),
+                settings.max_error,
+                where_above(scene, bake, &m.wanted)
+            )
+        }),
+        stopped: format!("stopped at the element budget --max-elements {budget}"),
+    }
+}
+
+/// Adds `more` stage times to `timings` (summing a stage that is there already).
+fn add_timings(timings: &mut Vec<(&'static str, f64)>, more: &[(&'static str, f64)]) {
+    for &(name, t) in more {
+        match timings.iter_mut().find(|(n, _)| *n == name) {
+            Some(slot) => slot.1 += t,
+            None => timings.push((name, t)),
+        }
+    }
+}
+
 /// Refines `first` (a bake on the grids) as the module docs say; returns it unchanged when
 /// refinement is off, links are saved or loaded, or a hierarchical bake did not ask for it.
 pub fn refine(
@@ -176,26 +312,11 @@ pub fn refine(
     let before = bake.mesh.elements.len();
     bake.refinement.elements_before = before;
     bake.refinement.elements_after = before;
-    if !settings.refine {
-        bake.refinement.stopped = "--refine off".into();
-        return Ok(bake);
-    }
-    if settings.save_links || settings.load_links.is_some() {
-        // Saved links are keyed by the grids (and loaded ones were made over them).
-        bake.refinement.stopped =
-            "not refined: --save-links and --load-links keep the grids".into();
+    if let Some(why) = not_refined(settings, &bake) {
+        bake.refinement.stopped = why.into();
         return Ok(bake);
     }
     let hierarchical = bake.transport.kind == TransportKind::Hierarchical;
-    if hierarchical && !settings.refine_requested && settings.max_elements.is_none() {
-        // Each solve of a refining hierarchical bake links the whole scene again: a
-        // walkthrough's default bake stays one solve, and `--refine on` asks for more.
-        bake.refinement.stopped = "not refined by default on the hierarchical transport (each \
-                                   refinement solve links the scene again): --refine on or \
-                                   --max-elements asks for it"
-            .into();
-        return Ok(bake);
-    }
     // Every solve of a hierarchical bake links the whole scene again: fewer of them.
     let max_passes = if hierarchical {
         MAX_HIERARCHICAL_PASSES
@@ -204,96 +325,23 @@ pub fn refine(
     };
     let budget = settings.element_budget(before, hierarchical);
     let mut timings: Vec<(&'static str, f64)> = bake.timings.clone();
-    let add_timings = |timings: &mut Vec<(&'static str, f64)>, more: &[(&'static str, f64)]| {
-        for &(name, t) in more {
-            match timings.iter_mut().find(|(n, _)| *n == name) {
-                Some(slot) => slot.1 += t,
-                None => timings.push((name, t)),
-            }
-        }
-    };
     let mut passes = 0;
     let mut split = 0;
-    let above;
-    let stopped;
-    loop {
+    let (above, stopped) = loop {
         let lap = Instant::now();
         let m = marks(&bake, settings);
-        let n = bake.mesh.elements.len();
-        if m.wanted.is_empty() {
-            above = m.at_finest;
-            stopped = if m.at_finest > 0 {
-                let at: Vec<usize> = (0..n)
-                    .filter(|&i| {
-                        m.priority[i] > 1.0
-                            && bake.mesh.level(i) >= settings.refine_levels
-                            && bake.partly_lit.get(i) != Some(&true)
-                    })
-                    .collect();
-                if settings.warn_refinement {
-                    bake.warnings.push(format!(
-                        "refinement reached its finest elements (1/{} of the grid's) with {} \
-                         elements still above --max-error {:e}: {}",
-                        1u64 << settings.refine_levels.min(63),
-                        m.at_finest,
-                        settings.max_error,
-                        where_above(scene, &bake, &at)
-                    ));
-                }
-                "finest level reached".to_string()
-            } else {
-                "the estimate meets the target".to_string()
-            };
-            break;
-        }
-        let room = (budget.saturating_sub(n as u64) / 3) as usize;
-        if room == 0 || passes + 1 >= max_passes {
-            above = m.wanted.len() + m.at_finest;
-            let why = if room == 0 {
-                format!("the element budget --max-elements {budget}")
-            } else {
-                format!("{max_passes} solves")
-            };
-            if settings.warn_refinement {
-                bake.warnings.push(format!(
-                    "refinement stopped at {why} ({n} elements) with {} elements still above \
-                     --max-error {:e}: {}",
-                    m.wanted.len(),
-                    settings.max_error,
-                    where_above(scene, &bake, &m.wanted)
-                ));
+        let chosen = match step(scene, settings, &bake, &m, (budget, passes, max_passes)) {
+            Step::Split(chosen) => chosen,
+            Step::Stop {
+                above,
+                stopped,
+                warning,
+            } => {
+                bake.warnings.extend(warning);
+                break (above, stopped);
             }
-            stopped = format!("stopped at {why}");
-            break;
-        }
-        // Where the budget cuts, elements tied with the first one left out (within 1e-9:
-        // mirror images of a symmetric scene) are left out too, so that refinement keeps
-        // symmetries.
-        let mut chosen = m.wanted.len().min(room);
-        if chosen < m.wanted.len() {
-            let cut = m.priority[m.wanted[chosen]] * (1.0 + 1e-9);
-            chosen = m.wanted[..chosen]
-                .iter()
-                .take_while(|&&i| m.priority[i] > cut)
-                .count();
-        }
-        if chosen == 0 {
-            above = m.wanted.len() + m.at_finest;
-            if settings.warn_refinement {
-                bake.warnings.push(format!(
-                    "refinement stopped at the element budget --max-elements {} ({n} elements): \
-                     splitting any of the {} elements above --max-error {:e} (tied, e.g. mirror \
-                     images) would pass it: {}",
-                    budget,
-                    m.wanted.len(),
-                    settings.max_error,
-                    where_above(scene, &bake, &m.wanted)
-                ));
-            }
-            stopped = format!("stopped at the element budget --max-elements {budget}");
-            break;
-        }
-        let mut marked = vec![false; n];
+        };
+        let mut marked = vec![false; bake.mesh.elements.len()];
         for &i in m.wanted.iter().take(chosen) {
             marked[i] = true;
         }
@@ -310,7 +358,7 @@ pub fn refine(
         bake = next;
         passes += 1;
         split += chosen;
-    }
+    };
     let lap = Instant::now();
     let mesh = bake.mesh.split_at_discontinuities(&bake.shadow_class);
     let discontinuity_vertices = mesh.vertices.len() - bake.mesh.vertices.len();

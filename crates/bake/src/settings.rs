@@ -4,12 +4,13 @@
 use crate::presets::Quality;
 use crate::BakeError;
 use form_factor::{ContourOptions, Estimator, TriangleRule};
-use importer::Polygon;
 use mesher::Subdivision;
+use scene::Polygon;
 use solver::IterativeOptions;
 
 /// `--ff-estimator`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum EstimatorKind {
     Contour,
     PointPolygon,
@@ -19,6 +20,7 @@ pub enum EstimatorKind {
 
 /// `--solver`: how the dense transport's system is solved.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum SolverKind {
     /// LU factorisation (dense transport only).
     Direct,
@@ -28,8 +30,13 @@ pub enum SolverKind {
 
 /// `--transport`: how light transport between elements is represented.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum TransportKind {
     /// Dense for small scenes (exact), hierarchical above [`crate::DENSE_CROSSOVER`] elements.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Dense up to the measured crossover, hierarchical above it")
+    )]
     #[default]
     Auto,
     /// Every element pair's form factor in an n × n matrix.
@@ -228,71 +235,7 @@ impl Settings {
             .subdivision
             .unwrap_or_else(|| Subdivision::MaxSize(preset.max_element_size(polygons)));
         let estimator = estimator(request, preset.estimator);
-        if request.transport == TransportKind::Hierarchical
-            && request.solver == Some(SolverKind::Direct)
-        {
-            return Err(BakeError::Options(
-                "--solver direct needs the dense transport (the hierarchical transport is \
-                 solved by GMRES); use --transport dense or --solver iterative"
-                    .into(),
-            ));
-        }
-        if let Some(k) = request.bounces.filter(|&k| k > crate::MAX_BOUNCES) {
-            return Err(BakeError::Options(format!(
-                "--bounces must be at most {}, got {k}",
-                crate::MAX_BOUNCES
-            )));
-        }
-        if let Some(e) = request.max_error {
-            if !(e.is_finite() && e > 0.0 && e < 1.0) {
-                return Err(BakeError::Options(format!(
-                    "--max-error must be a relative error in (0, 1), got {e}"
-                )));
-            }
-        }
-        if let Some(k) = request.light_samples {
-            if !(1..=1024).contains(&k) {
-                return Err(BakeError::Options(format!(
-                    "--light-samples must be between 1 and 1024, got {k}"
-                )));
-            }
-        }
-        if (request.save_links || request.load_links.is_some())
-            && (request.transport == TransportKind::Dense
-                || request.solver == Some(SolverKind::Direct))
-        {
-            return Err(BakeError::Options(
-                "--save-links and --load-links need the hierarchical transport (the dense one \
-                 has no links); leave out --transport dense and --solver direct"
-                    .into(),
-            ));
-        }
-        if let Some(t) = request.link_tolerance {
-            if !(t.is_finite() && t > 0.0) {
-                return Err(BakeError::Options(format!(
-                    "--link-tolerance must be a positive number, got {t}"
-                )));
-            }
-        }
-        if request.refine == Some(true) && (request.save_links || request.load_links.is_some()) {
-            return Err(BakeError::Options(
-                "--refine on cannot be combined with --save-links or --load-links: links are \
-                 built over the element grids, which refinement changes"
-                    .into(),
-            ));
-        }
-        if let Some(r) = request.max_reflectance {
-            if !(r.is_finite() && r > 0.0 && r <= 1.0) {
-                return Err(BakeError::Options(format!(
-                    "--max-reflectance must be a reflectance in (0, 1], got {r}"
-                )));
-            }
-        }
-        if request.max_elements == Some(0) {
-            return Err(BakeError::Options(
-                "--max-elements must be at least 1".into(),
-            ));
-        }
+        check(request)?;
         let default = IterativeOptions::default();
         let iterative = |tolerance: f64| IterativeOptions {
             tolerance: request.tolerance.unwrap_or(tolerance),
@@ -435,4 +378,72 @@ fn estimator(request: &Request, preset: Estimator) -> Estimator {
             TriangleRule::from_points(request.ff_points).unwrap_or(TriangleRule::Three),
         ),
     }
+}
+/// The combinations and values of a request no parser checks.
+fn check(request: &Request) -> Result<(), BakeError> {
+    if request.transport == TransportKind::Hierarchical
+        && request.solver == Some(SolverKind::Direct)
+    {
+        return Err(BakeError::Options(
+            "--solver direct needs the dense transport (the hierarchical transport is \
+             solved by GMRES); use --transport dense or --solver iterative"
+                .into(),
+        ));
+    }
+    if let Some(k) = request.bounces.filter(|&k| k > crate::MAX_BOUNCES) {
+        return Err(BakeError::Options(format!(
+            "--bounces must be at most {}, got {k}",
+            crate::MAX_BOUNCES
+        )));
+    }
+    if let Some(e) = request.max_error {
+        if !(e.is_finite() && e > 0.0 && e < 1.0) {
+            return Err(BakeError::Options(format!(
+                "--max-error must be a relative error in (0, 1), got {e}"
+            )));
+        }
+    }
+    if let Some(k) = request.light_samples {
+        if !(1..=1024).contains(&k) {
+            return Err(BakeError::Options(format!(
+                "--light-samples must be between 1 and 1024, got {k}"
+            )));
+        }
+    }
+    if (request.save_links || request.load_links.is_some())
+        && (request.transport == TransportKind::Dense || request.solver == Some(SolverKind::Direct))
+    {
+        return Err(BakeError::Options(
+            "--save-links and --load-links need the hierarchical transport (the dense one \
+             has no links); leave out --transport dense and --solver direct"
+                .into(),
+        ));
+    }
+    if let Some(t) = request.link_tolerance {
+        if !(t.is_finite() && t > 0.0) {
+            return Err(BakeError::Options(format!(
+                "--link-tolerance must be a positive number, got {t}"
+            )));
+        }
+    }
+    if request.refine == Some(true) && (request.save_links || request.load_links.is_some()) {
+        return Err(BakeError::Options(
+            "--refine on cannot be combined with --save-links or --load-links: links are \
+             built over the element grids, which refinement changes"
+                .into(),
+        ));
+    }
+    if let Some(r) = request.max_reflectance {
+        if !(r.is_finite() && r > 0.0 && r <= 1.0) {
+            return Err(BakeError::Options(format!(
+                "--max-reflectance must be a reflectance in (0, 1], got {r}"
+            )));
+        }
+    }
+    if request.max_elements == Some(0) {
+        return Err(BakeError::Options(
+            "--max-elements must be at least 1".into(),
+        ));
+    }
+    Ok(())
 }

@@ -27,9 +27,9 @@
 //! It is not the radiosity solver and knows nothing of form factors, links or presets.
 
 use glam::{DVec2, DVec3};
-use importer::{Light, LightKind};
 use mesher::ElementMesh;
 use rayon::prelude::*;
+use scene::{Light, LightKind};
 use visibility::{pair_seed, strata, Occluders, Patch, SplitMix64};
 
 /// Shadow rays per element some polygon may shadow from a point or spot light

@@ -8,7 +8,7 @@ use crate::ExportError;
 use gltf::json;
 use gltf::json::validation::USize64;
 use gltf::json::Index;
-use importer::Authored;
+use scene::Authored;
 use std::collections::HashMap;
 
 pub(crate) const TEXTURE_TRANSFORM_EXTENSION: &str = "KHR_texture_transform";

@@ -10,7 +10,7 @@ use gltf::json::buffer::Target;
 use gltf::json::mesh::{Mode, Semantic};
 use gltf::json::validation::{Checked, USize64};
 use gltf::json::Index;
-use importer::{Layout, Scene, Transform};
+use scene::{Layout, Scene, Transform};
 use std::collections::BTreeMap;
 
 /// The name of the one material every baked primitive uses.

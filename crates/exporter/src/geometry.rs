@@ -3,8 +3,8 @@
 
 use crate::{Bake, ExportError, Shading};
 use glam::{DMat3, DMat4, DVec3};
-use importer::{Origin, Scene};
 use mesher::ElementMesh;
+use scene::{Origin, Scene};
 use std::collections::{BTreeMap, HashMap};
 
 /// The vertex and index data of one output primitive (f32, node-local space).
@@ -265,8 +265,8 @@ fn element_name(bake: &Bake, index: usize) -> String {
     let polygon = bake.mesh.elements[index].polygon;
     let origin = bake.scene.polygons[polygon as usize].origin;
     let side = match origin.side {
-        importer::Side::Front => "front",
-        importer::Side::Back => "back",
+        scene::Side::Front => "front",
+        scene::Side::Back => "back",
     };
     format!(
         "element {index} (polygon {polygon}: node {}, mesh {}, primitive {}, face {}, {side})",

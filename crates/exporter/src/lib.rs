@@ -33,20 +33,13 @@ pub use lightmap_gltf::{
 
 use std::path::{Path, PathBuf};
 
-/// How radiosity is shown across an element.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Shading {
-    /// Vertex values are area-weighted averages of the elements around each vertex (the paper's
-    /// linear smoothing), interpolated across elements.
-    Smooth,
-    /// Each element constant (its vertices are duplicated per element).
-    Flat,
-}
+/// How radiosity is shown across an element (`--shading`).
+pub use mesher::Shading;
 
 /// Everything [`write_gltf`] needs.
 #[derive(Clone, Copy, Debug)]
 pub struct Bake<'a> {
-    pub scene: &'a importer::Scene,
+    pub scene: &'a scene::Scene,
     pub mesh: &'a mesher::ElementMesh,
     /// Radiosity b per element (unclamped, linear, same units as emission).
     pub radiosity: &'a [[f64; 3]],
@@ -64,7 +57,7 @@ pub struct Bake<'a> {
 
 /// Whether some material of `scene` keeps its base-colour texture in the vertex bake (then
 /// [`Bake::irradiance`] is required).
-pub fn keeps_textures(scene: &importer::Scene) -> bool {
+pub fn keeps_textures(scene: &scene::Scene) -> bool {
     (0..scene.materials.len()).any(|m| geometry::textured_set(scene, m).is_some())
 }
 

@@ -18,8 +18,8 @@ use gltf::json;
 use gltf::json::mesh::{Mode, Semantic};
 use gltf::json::validation::Checked;
 use gltf::json::Index;
-use importer::{Material, Scene};
 use lightmap::Lightmap;
+use scene::{Material, Scene};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -345,9 +345,9 @@ fn add_lights(root: &mut json::Root, scene: &Scene) {
     let mut lights = Vec::with_capacity(scene.lights.len());
     for (i, light) in scene.lights.iter().enumerate() {
         let (type_, spot) = match light.kind {
-            importer::LightKind::Point => (khr::Type::Point, None),
-            importer::LightKind::Directional => (khr::Type::Directional, None),
-            importer::LightKind::Spot { inner, outer } => (
+            scene::LightKind::Point => (khr::Type::Point, None),
+            scene::LightKind::Directional => (khr::Type::Directional, None),
+            scene::LightKind::Spot { inner, outer } => (
                 khr::Type::Spot,
                 Some(khr::Spot {
                     inner_cone_angle: inner as f32,

@@ -15,8 +15,8 @@
 //! ```
 
 use crate::{ExportError, OutputSet};
-use importer::{Scene, Side};
 use mesher::ElementMesh;
+use scene::{Scene, Side};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -77,6 +77,7 @@ pub struct Report {
 /// Which per-element data a report holds (`--report-elements`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum ElementsIncluded {
     /// The summary and every element.
     #[default]
@@ -392,7 +393,7 @@ impl From<Side> for SideName {
     }
 }
 
-/// Where one scene polygon came from (its [`importer::Origin`]).
+/// Where one scene polygon came from (its [`scene::Origin`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct PolygonEntry {
     pub node: usize,

@@ -9,64 +9,12 @@
 
 use crate::files::Files;
 use crate::{ImportError, Material};
-use glam::DVec2;
 use gltf::json::validation::Checked;
 use gltf::json::Root;
+pub use scene::{
+    authored_sets, Authored, AuthoredTexture, EncodedImage, Image, Texture, TextureRef, Wrap,
+};
 use std::collections::HashMap;
-
-/// A decoded image: linear RGB per texel, row-major, the first row at v = 0 (glTF's UV origin
-/// is the image's top-left corner).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Image {
-    pub width: u32,
-    pub height: u32,
-    pub texels: Vec<[f32; 3]>,
-    /// Linear alpha per texel when the file has an alpha channel (else empty: opaque).
-    pub alpha: Vec<f32>,
-}
-
-/// How texture coordinates outside [0, 1] wrap (glTF sampler `wrapS`/`wrapT`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Wrap {
-    Repeat,
-    ClampToEdge,
-    MirroredRepeat,
-}
-
-/// A glTF texture: an image and how it is sampled.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Texture {
-    /// Names the texture in messages.
-    pub name: String,
-    /// Index into [`crate::Scene::images`].
-    pub image: usize,
-    /// `wrapS`, `wrapT`.
-    pub wrap: [Wrap; 2],
-    /// Magnification filter `NEAREST` (else linear, the default).
-    pub nearest: bool,
-}
-
-/// A material's use of a texture.
-#[derive(Clone, Debug, PartialEq)]
-pub struct TextureRef {
-    /// Index into [`crate::Scene::textures`].
-    pub texture: usize,
-    /// Which `TEXCOORD_n` set (after `KHR_texture_transform`'s override).
-    pub tex_coord: u32,
-    /// `KHR_texture_transform` as a 2 × 3 matrix: uv' = M (u, v, 1) = T R S (u, v, 1).
-    pub transform: [[f64; 3]; 2],
-}
-
-impl TextureRef {
-    /// The transformed coordinates of `uv`.
-    pub fn apply(&self, uv: DVec2) -> DVec2 {
-        let m = &self.transform;
-        DVec2::new(
-            m[0][0] * uv.x + m[0][1] * uv.y + m[0][2],
-            m[1][0] * uv.x + m[1][1] * uv.y + m[1][2],
-        )
-    }
-}
 
 /// The texture references of glTF material `m` (JSON), before decoding: (base colour,
 /// emissive) as (texture index in the file, TEXCOORD set, transform).
@@ -106,39 +54,6 @@ pub(crate) fn references(root: &Root, m: usize) -> [Option<Reference>; 2] {
             .map(info),
         material.emissive_texture.as_ref().map(info),
     ]
-}
-
-/// The input's materials as authored, with the textures and encoded images they use, so the
-/// outputs can keep the asset (glTF input; OBJ `map_Kd` likewise).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Authored {
-    /// Per [`crate::Scene::materials`] entry: the material as written (glTF JSON, a
-    /// `gltf::json::Material`) with its texture indices rewritten into [`Authored::textures`];
-    /// the occlusion texture (a bake has the occlusion in its light already) and material
-    /// extensions other than `KHR_materials_emissive_strength` are left out. `None` for
-    /// materials no baked primitive uses and for the default material.
-    pub materials: Vec<Option<serde_json::Value>>,
-    pub textures: Vec<AuthoredTexture>,
-    pub images: Vec<EncodedImage>,
-}
-
-/// A texture of [`Authored`]: its sampler as written (glTF JSON `gltf::json::texture::Sampler`)
-/// and its image.
-#[derive(Clone, Debug, PartialEq)]
-pub struct AuthoredTexture {
-    pub name: Option<String>,
-    pub sampler: Option<serde_json::Value>,
-    /// Index into [`Authored::images`].
-    pub image: usize,
-}
-
-/// An image file's bytes as read (PNG or JPEG).
-#[derive(Clone, Debug, PartialEq)]
-pub struct EncodedImage {
-    pub name: Option<String>,
-    /// `image/png` or `image/jpeg`.
-    pub mime_type: &'static str,
-    pub bytes: Vec<u8>,
 }
 
 /// What [`load`] found: decoded textures for ρ and e, the authored materials, and warnings
@@ -429,28 +344,6 @@ pub(crate) fn mime_type(bytes: &[u8], what: &str) -> Result<&'static str, String
             "{what}: not a PNG or JPEG file (KTX2, WebP and others are not supported)"
         )),
     }
-}
-
-/// The TEXCOORD sets the kept textures of an authored material use (after
-/// `KHR_texture_transform`'s override), as flags for sets 0 and 1.
-pub fn authored_sets(material: &serde_json::Value) -> [bool; 2] {
-    let mut sets = [false; 2];
-    let slots = [
-        &material["pbrMetallicRoughness"]["baseColorTexture"],
-        &material["pbrMetallicRoughness"]["metallicRoughnessTexture"],
-        &material["normalTexture"],
-        &material["emissiveTexture"],
-    ];
-    for info in slots.into_iter().filter(|i| i.is_object()) {
-        let set = info["extensions"]["KHR_texture_transform"]["texCoord"]
-            .as_u64()
-            .or_else(|| info["texCoord"].as_u64())
-            .unwrap_or(0);
-        if let Some(flag) = sets.get_mut(set as usize) {
-            *flag = true;
-        }
-    }
-    sets
 }
 
 /// The largest image accepted (texels): a memory guard against a hostile header.

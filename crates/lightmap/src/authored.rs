@@ -22,8 +22,8 @@
 
 use crate::LightmapError;
 use glam::DVec2;
-use importer::{Polygon, Scene, Side};
 use rayon::prelude::*;
+use scene::{Polygon, Scene, Side};
 use std::collections::{BTreeMap, HashMap};
 
 /// Padding between authored islands (texels) below which the bake warns.
@@ -31,6 +31,7 @@ pub const MIN_PADDING: f64 = 2.0;
 
 /// Where the lightmap's charts come from (`--lightmap-uv`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum UvMode {
     /// The input's `TEXCOORD_1` where the whole scene's is a usable layout; otherwise per
     /// primitive instance: one whose own `TEXCOORD_1` is usable (in [0, 1], no overlaps
@@ -38,12 +39,22 @@ pub enum UvMode {
     /// region (its `TEXCOORD_1` scaled and moved: an affine map of the input's), the others
     /// get generated charts. The decision per primitive is in
     /// [`crate::Lightmap::uv_decisions`].
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            help = "The input's TEXCOORD_1 where usable (as a whole, else per primitive), generated charts elsewhere"
+        )
+    )]
     #[default]
     Auto,
     /// The input's `TEXCOORD_1` as it is, for the whole scene: one atlas when it is one
     /// usable layout; when primitives overlap each other but each one's own layout is usable,
     /// an atlas per primitive (at most `Options::max_atlases`), each primitive's
     /// `TEXCOORD_1` unchanged; an error otherwise.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "The input's TEXCOORD_1 unchanged; an error where it is unusable")
+    )]
     Keep,
     /// Charts made by the lightmap (one per polygon).
     Generate,
@@ -88,7 +99,7 @@ fn polygon_uv(scene: &Scene, k: usize, polygon: &Polygon) -> Result<Vec<DVec2>, 
         .materials
         .get(polygon.material)
         .and_then(Option::as_ref)
-        .is_some_and(|m| importer::texture::authored_sets(m)[1]);
+        .is_some_and(|m| scene::authored_sets(m)[1]);
     if decoded || authored {
         return Err("its material samples TEXCOORD_1 as a texture set".into());
     }

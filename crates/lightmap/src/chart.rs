@@ -8,7 +8,7 @@
 //! 2×2 block of the first mip level belongs to one region.
 
 use glam::{DVec2, DVec3};
-use importer::Polygon;
+use scene::Polygon;
 
 /// Texels between a polygon's bounding box and its region's edge: bilinear filtering at the
 /// first mip level reads level-0 texels up to 2.5 texels outside the polygon.

@@ -7,8 +7,8 @@
 
 use crate::LightmapError;
 use glam::{DVec2, DVec3};
-use importer::Polygon;
 use mesher::{ElementMesh, PatchGrid};
+use scene::Polygon;
 
 /// How a polygon's vertex grid is laid out (see `mesher::mesh`).
 #[derive(Clone, Debug, PartialEq)]

@@ -15,7 +15,7 @@
 use crate::authored::check_layout;
 use crate::chart::PADDING;
 use glam::{DVec2, DVec3};
-use importer::Polygon;
+use scene::Polygon;
 use std::collections::HashMap;
 
 /// Scenes with more polygons than this get grouped charts when grouping at least halves the

@@ -58,9 +58,9 @@ pub use raster::DILATION_RADIUS;
 
 use field::Field;
 use glam::{DVec2, DVec3};
-use importer::Polygon;
 use mesher::ElementMesh;
 use rayon::prelude::*;
+use scene::Polygon;
 
 /// Default `--lightmap-max`: the largest atlas side, in texels.
 pub const DEFAULT_MAX_SIZE: u32 = 4096;
@@ -70,7 +70,7 @@ pub const DEFAULT_TEXELS_PER_DIAGONAL: f64 = 256.0;
 
 /// The default texel size (world units per texel) for `polygons`: diagonal / 256.
 pub fn default_texel_size(polygons: &[Polygon]) -> f64 {
-    let (lo, hi) = importer::bounds(polygons);
+    let (lo, hi) = scene::bounds(polygons);
     (hi - lo).length() / DEFAULT_TEXELS_PER_DIAGONAL
 }
 
@@ -94,18 +94,7 @@ pub const DEFAULT_MAX_ATLASES: u32 = 16;
 
 /// How texels are reconstructed from the per-element values (`--shading`, as for the
 /// vertex bake).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Shading {
-    /// The smoothed, welded field: the vertex bake's smoothing (`ElementMesh::smooth`),
-    /// interpolated over the element grid, so the light has no steps at element edges.
-    #[default]
-    Smooth,
-    /// Each texel holds the value of the element its centre maps to (outside the polygon, in
-    /// the footprint's rim: the nearest element's), gutters dilated as for `Smooth`. Bilinear
-    /// sampling at a point at least one texel inside its element reads exactly that
-    /// element's H (an element centre, once elements span ≥ 2 texels each way).
-    Flat,
-}
+pub use mesher::Shading;
 
 /// Per-element values and each polygon's first element, for [`Shading::Flat`].
 #[derive(Clone, Debug, PartialEq)]
@@ -1043,7 +1032,7 @@ fn smooth_and_weld(
     element_values: &[[f64; 3]],
 ) -> (Vec<[f64; 3]>, usize) {
     let smoothed = mesh.smooth(element_values);
-    let (lo, hi) = importer::bounds(polygons);
+    let (lo, hi) = scene::bounds(polygons);
     let tolerance = 1e-6 * (hi - lo).length();
     field::weld(polygons, fields, &smoothed, tolerance)
 }
@@ -1197,7 +1186,7 @@ pub fn sample_bilinear(texels: &[[f32; 3]], width: u32, height: u32, uv: [f64; 2
 #[cfg(test)]
 mod tests {
     use super::*;
-    use importer::{Origin, Side};
+    use scene::{Origin, Side};
 
     fn polygon(vertices: Vec<DVec3>, material: usize) -> Polygon {
         let normal = (vertices[1] - vertices[0])

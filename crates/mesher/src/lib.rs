@@ -13,11 +13,32 @@
 //! general remesher: elements stay planar convex triangles and quads of their polygon.
 
 use glam::DVec3;
-use importer::Polygon;
+use scene::Polygon;
 use std::ops::Range;
 
 mod refine;
 pub use refine::Refined;
+
+/// How radiosity is shown across an element (`--shading`), in the vertex bake and the
+/// lightmap alike.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum Shading {
+    /// Smoothed: vertex values are area-weighted averages of the elements around each vertex
+    /// (the paper's linear smoothing, `ElementMesh::smooth`), interpolated across elements
+    /// and, in the lightmap, over the element grid, so the light has no steps at element edges.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Area-weighted averages at vertices, interpolated across elements")
+    )]
+    #[default]
+    Smooth,
+    /// Each element constant: its vertices are duplicated per element; each lightmap texel
+    /// holds the element its centre maps to (in the footprint's rim: the nearest element's),
+    /// so bilinear sampling at least one texel inside an element reads exactly its H.
+    #[cfg_attr(feature = "clap", value(help = "Each element its own constant value"))]
+    Flat,
+}
 
 /// How finely to subdivide.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -103,7 +124,7 @@ pub fn default_max_element_size(polygons: &[Polygon]) -> f64 {
 
 /// An element size relative to the scene: its bounding-box diagonal / `per_diagonal`.
 pub fn max_element_size(polygons: &[Polygon], per_diagonal: f64) -> f64 {
-    let (lo, hi) = importer::bounds(polygons);
+    let (lo, hi) = scene::bounds(polygons);
     (hi - lo).length() / per_diagonal
 }
 
@@ -354,7 +375,7 @@ impl ElementMesh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use importer::{Origin, Side};
+    use scene::{Origin, Side};
 
     pub(crate) fn polygon(vertices: Vec<DVec3>) -> Polygon {
         let n = (vertices[1] - vertices[0])

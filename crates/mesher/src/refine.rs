@@ -325,7 +325,7 @@ mod tests {
     use crate::tests::polygon;
     use crate::{mesh, ElementMesh, Subdivision};
     use glam::DVec3;
-    use importer::Polygon;
+    use scene::Polygon;
     use std::collections::HashMap;
 
     fn shapes() -> Vec<Polygon> {

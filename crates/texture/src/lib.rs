@@ -16,7 +16,7 @@
 //! their corners.
 
 use glam::{DVec2, DVec3};
-use importer::{Image, PolygonUv, Texture, TextureRef, Wrap};
+use scene::{Image, PolygonUv, Texture, TextureRef, Wrap};
 
 /// The mean linear RGB of `texture` (with `image`) over the planar convex element `corners`
 /// (3 or 4, counter-clockwise about `normal`) lying on the polygon mapped by `uv`, through
@@ -88,7 +88,7 @@ fn for_each_piece(
     uv: &PolygonUv,
     corners: &[DVec3],
     normal: DVec3,
-    mut f: impl FnMut(&importer::UvTriangle, [DVec2; 3], &[DVec2], f64),
+    mut f: impl FnMut(&scene::UvTriangle, [DVec2; 3], &[DVec2], f64),
 ) {
     let origin = corners[0];
     let u_axis = (corners[1] - corners[0]).normalize_or_zero();
@@ -315,7 +315,7 @@ fn wrap(i: i64, n: i64, mode: Wrap) -> i64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use importer::UvTriangle;
+    use scene::UvTriangle;
 
     fn square_uv(uv_scale: f64) -> PolygonUv {
         let p = [

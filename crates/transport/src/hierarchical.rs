@@ -67,9 +67,9 @@ use form_factor::{
     PairScreen, Surface,
 };
 use glam::DVec3;
-use importer::Polygon;
 use mesher::ElementMesh;
 use rayon::prelude::*;
+use scene::Polygon;
 use solver::{IterativeOptions, Operator, SolveError, BANDS};
 use std::sync::atomic::{AtomicU64, Ordering};
 use visibility::{pair_seed, Patch};

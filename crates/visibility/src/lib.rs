@@ -40,10 +40,10 @@ pub use sampling::{pair_seed, rays_for, strata, Pattern, SplitMix64};
 use bvh::{Slabs, Tree};
 use geometry::{facing, may_block, may_block_light, Piece};
 use glam::DVec3;
-use importer::Polygon;
 use mesher::ElementMesh;
 use rayon::prelude::*;
 use sampling::Generator;
+use scene::Polygon;
 
 /// Default shadow rays per occludable element pair (`--visibility-samples`): 17 × 17.
 ///
@@ -191,7 +191,7 @@ impl Occluders {
             }
             pieces.push(Piece::new(patch));
         }
-        let (lo, hi) = importer::bounds(polygons);
+        let (lo, hi) = scene::bounds(polygons);
         let diagonal = (hi - lo).length();
         let scale = if diagonal.is_finite() && diagonal > 0.0 {
             diagonal

@@ -12,8 +12,8 @@
 //! coefficients, finite gradients): a damaged file is an error, never a panic or a NaN.
 
 use super::{build_trees, Entries, HierarchicalStats, HierarchicalTransport};
-use importer::Polygon;
 use mesher::ElementMesh;
+use scene::Polygon;
 use std::io::{self, Read, Write};
 
 const MAGIC: &[u8; 8] = b"BAKELNK1";

@@ -1,0 +1,363 @@
+//! One bake from files to files: the library entry the `bake` binary calls.
+//!
+//! [`run`] takes a [`Job`] (the input, the outputs and every option) and does, in order:
+//! check the options and plan the output set (every file writable, none an input), import,
+//! run `bake_core`'s one bake (mesh, visibility, transport, solve, refinement), build the
+//! lightmap, stage the vertex and lightmap glTF, the links file and the report, and commit the
+//! set (renamed into place together, OUT last). Failures carry their exit code ([`Failure`]).
+//!
+//! What it is not: a command line (the binary parses options into a [`Job`] and shows
+//! progress through [`Events`]), and no stage of its own — every computation is in the
+//! pipeline crates, which this crate only calls in order. The option enums a command line
+//! needs are defined once, in the crates that use them, and re-exported here; the `clap`
+//! feature derives `clap::ValueEnum` on all of them.
+
+mod outputs;
+mod report;
+mod summary;
+
+use anyhow::{anyhow, Context};
+use outputs::Plan;
+use std::path::PathBuf;
+use std::time::Instant;
+
+pub use bake_core::presets::Quality;
+pub use bake_core::{
+    EstimatorKind, Progress, Request, SolverKind, TransportKind, DEFAULT_MAX_REFLECTANCE,
+    MAX_BOUNCES,
+};
+pub use exporter::report::ElementsIncluded;
+pub use form_factor::ContourOptions;
+pub use lightmap::{UvMode, DEFAULT_MAX_ATLASES, DEFAULT_MAX_SIZE};
+pub use mesher::{Shading, Subdivision};
+/// The software rasterizer behind `bake preview`.
+pub use preview;
+
+/// Above this many elements a report lists no elements unless `--report-elements all` asks
+/// (each costs about 400 bytes of JSON).
+pub const REPORT_ELEMENTS_LIMIT: usize = 100_000;
+
+/// Which bakes are written (`--target`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum Target {
+    /// The vertex bake only, as OUT.
+    Vertex,
+    /// The lightmap bake only, as OUT.
+    Lightmap,
+    /// The vertex bake as OUT and the lightmap bake beside it.
+    Both,
+}
+
+/// `--exposure`: `auto`, or a number (checked to be finite and ≥ 0 before the bake).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Exposure {
+    Auto,
+    Value(f64),
+}
+
+impl std::str::FromStr for Exposure {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Exposure, String> {
+        if text.eq_ignore_ascii_case("auto") {
+            return Ok(Exposure::Auto);
+        }
+        text.parse::<f64>()
+            .map(Exposure::Value)
+            .map_err(|e| format!("{e} (expected a number or `auto`)"))
+    }
+}
+
+/// The lightmap's options (`--lightmap-*`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightmapOptions {
+    /// Texel size in scene units; `None`: from the scene's size.
+    pub texel: Option<f64>,
+    /// Largest atlas side in texels.
+    pub max_size: u32,
+    /// Most atlases.
+    pub atlases: u32,
+    /// Where the charts come from.
+    pub uv: UvMode,
+}
+
+/// One bake: what to read, what to write, and how.
+#[derive(Clone, Debug)]
+pub struct Job {
+    pub input: PathBuf,
+    pub output: PathBuf,
+    /// The bake's options as `bake_core` takes them. `irradiance` and `save_links` are set by
+    /// [`run`] from the target, the scene's textures and [`Job::save_links`].
+    pub request: Request,
+    pub target: Target,
+    pub shading: Shading,
+    pub exposure: Exposure,
+    pub lightmap: LightmapOptions,
+    /// Keep the input's punctual lights in the lightmap bake.
+    pub keep_lights: bool,
+    pub report: Option<PathBuf>,
+    /// `None`: every element up to [`REPORT_ELEMENTS_LIMIT`], the summary above it.
+    pub report_elements: Option<ElementsIncluded>,
+    pub save_links: Option<PathBuf>,
+    /// Let the input name files outside its own directory.
+    pub allow_outside_paths: bool,
+}
+
+/// What a bake tells its caller while it runs: progress (bars) and warnings as they arise.
+pub trait Events: Progress {
+    /// One warning line (without a `warning:` prefix), shown as it arises: a bake refused or
+    /// killed later still showed it.
+    fn warn(&self, line: &str);
+}
+
+/// A failure with the exit code it maps to (1 bad input, 2 an output is an input or another
+/// output, 3 internal or output error).
+#[derive(Debug)]
+pub struct Failure {
+    pub code: u8,
+    pub error: anyhow::Error,
+}
+
+impl Failure {
+    /// The error and its causes on one line, `: `-separated. A cause whose text the line already
+    /// holds is left out: the crates' messages often embed their source (`cannot read X: {io}`).
+    pub fn line(&self) -> String {
+        let mut line = String::new();
+        for cause in self.error.chain() {
+            let text = cause.to_string();
+            let text = text.split_whitespace().collect::<Vec<_>>().join(" ");
+            if line.contains(&text) {
+                continue;
+            }
+            if !line.is_empty() {
+                line.push_str(": ");
+            }
+            line.push_str(&text);
+        }
+        line
+    }
+}
+
+pub(crate) fn bad_input(error: anyhow::Error) -> Failure {
+    Failure { code: 1, error }
+}
+
+pub(crate) fn internal(error: anyhow::Error) -> Failure {
+    Failure { code: 3, error }
+}
+
+/// What a finished bake says of itself: the one-line summary the binary prints.
+#[derive(Clone, Debug)]
+pub struct Done {
+    pub summary: String,
+}
+
+/// Runs `job` to the end: every output written, or none (the previous set stays).
+pub fn run<E: Events>(job: &Job, events: &E) -> Result<Done, Failure> {
+    let started = Instant::now();
+    check_options(job)?;
+    let plan = Plan::new(job)?;
+
+    // 1. Import.
+    let lap = Instant::now();
+    let options = importer::Options {
+        allow_outside_paths: job.allow_outside_paths,
+    };
+    let scene = importer::load_with(&job.input, &options)
+        .with_context(|| format!("{}", job.input.display()))
+        .map_err(bad_input)?;
+    let mut stages = report::Stages::default();
+    stages.record("import", lap);
+    plan.check_scene_inputs(&scene)?;
+    let authored_uv = authored_uv(job, &scene)?;
+    let mut warnings = Warnings::new(events);
+    warnings.extend(&scene.warnings);
+
+    // 2.–4. Mesh, visibility, transport, solve: one bake, as every caller runs it.
+    let mut request = job.request.clone();
+    request.irradiance = job.target != Target::Vertex || exporter::keeps_textures(&scene);
+    request.save_links = job.save_links.is_some();
+    let settings = bake_core::Settings::resolve(&request, &scene.polygons)
+        .map_err(|e| bad_input(anyhow!(e)))?;
+    let bake = bake_core::run(&scene, &settings, events).map_err(|e| Failure {
+        code: if e.is_input() { 1 } else { 3 },
+        error: anyhow!(e).context(format!("{}", job.input.display())),
+    })?;
+    stages.extend(&bake);
+    warnings.extend(&bake.warnings);
+
+    // 5. Lightmap: irradiance H = F b per element (ρ = 0 elements receive light too).
+    let mut lap = Instant::now();
+    let lightmap = match job.target {
+        Target::Vertex => None,
+        _ => {
+            let built = build_lightmap(job, &scene, &bake, &authored_uv, events)?;
+            warnings.extend(&built.warnings);
+            if built.stats.reductions > 0 {
+                warnings.push(format!(
+                    "lightmap texel size raised from {:.6} to {:.6} to fit a {} atlas",
+                    built.requested_texel_size, built.texel_size, job.lightmap.max_size
+                ));
+            }
+            stages.record("lightmap", lap);
+            lap = Instant::now();
+            Some(built)
+        }
+    };
+    let plan = plan.with_atlases(job, lightmap.as_ref(), &scene)?;
+
+    // 6. Export: every file of the set is staged (written to a temporary beside it) before
+    // any is renamed into place: the links and the report first, the lightmap, OUT last.
+    let exposure = exposure(job, &bake);
+    exporter::remove_stale_temporaries(&plan.files);
+    events.start("writing", 0);
+    let staged = outputs::stage_bakes(job, &scene, &bake, lightmap.as_ref(), exposure);
+    events.finish();
+    let (vertex_files, lightmap_files) = staged?;
+    stages.record("export", lap);
+
+    let mut set = exporter::OutputSet::new();
+    if let (Some(path), Some(saved)) = (&job.save_links, &bake.saved_links) {
+        set.stage_with(path, |w| saved.write(w))
+            .with_context(|| format!("cannot write {}", path.display()))
+            .map_err(internal)?;
+    }
+    if let Some(path) = &job.report {
+        let baked = report::Baked {
+            job,
+            scene: &scene,
+            settings: &settings,
+            bake: &bake,
+            lightmap: lightmap.as_ref(),
+            exposure,
+        };
+        let report = baked.report(path, &mut warnings, stages, started)?;
+        exporter::report::stage_report(&mut set, path, &report)
+            .with_context(|| format!("cannot write {}", path.display()))
+            .map_err(internal)?;
+    }
+    set.append(lightmap_files);
+    set.append(vertex_files);
+    set.commit()
+        .context("cannot write the outputs")
+        .map_err(internal)?;
+    let summary = summary::line(job, &scene, &bake, lightmap.as_ref(), exposure, started);
+    Ok(Done { summary })
+}
+
+/// The options no parser checks: refused before any work.
+fn check_options(job: &Job) -> Result<(), Failure> {
+    if let Exposure::Value(x) = job.exposure {
+        if !(x.is_finite() && x >= 0.0) {
+            return Err(bad_input(anyhow!(
+                "--exposure must be a finite number ≥ 0 or `auto`, got {x}"
+            )));
+        }
+    }
+    if let Some(l) = job.lightmap.texel {
+        if !(l.is_finite() && l > 0.0) {
+            return Err(bad_input(anyhow!(
+                "--lightmap-texel must be a positive number, got {l}"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The lightmap options for `scene`.
+fn lightmap_options(job: &Job, scene: &importer::Scene) -> lightmap::Options {
+    lightmap::Options {
+        texel_size: job
+            .lightmap
+            .texel
+            .unwrap_or_else(|| lightmap::default_texel_size(&scene.polygons)),
+        max_size: job.lightmap.max_size,
+        shading: job.shading,
+        max_atlases: job.lightmap.atlases,
+    }
+}
+
+/// The input's own lightmap UVs, when the lightmap may keep them; `--lightmap-uv keep` with
+/// an unusable TEXCOORD_1 is refused here, before the bake.
+fn authored_uv(job: &Job, scene: &importer::Scene) -> Result<lightmap::AuthoredUv, Failure> {
+    if job.target == Target::Vertex || job.lightmap.uv == UvMode::Generate {
+        return Ok(lightmap::AuthoredUv::none(scene.polygons.len()));
+    }
+    let authored = lightmap::AuthoredUv::from_scene(scene);
+    if job.lightmap.uv == UvMode::Keep {
+        lightmap::plan_uv(
+            &scene.polygons,
+            &authored,
+            UvMode::Keep,
+            &lightmap_options(job, scene),
+        )
+        .with_context(|| format!("{}", job.input.display()))
+        .map_err(bad_input)?;
+    }
+    Ok(authored)
+}
+
+/// The lightmap of the bake's irradiance.
+fn build_lightmap<E: Events>(
+    job: &Job,
+    scene: &importer::Scene,
+    bake: &bake_core::Bake,
+    authored_uv: &lightmap::AuthoredUv,
+    events: &E,
+) -> Result<lightmap::Lightmap, Failure> {
+    let h = bake
+        .irradiance
+        .as_ref()
+        .ok_or_else(|| internal(anyhow!("the bake computed no irradiance for the lightmap")))?;
+    events.start("lightmap", 0);
+    let built = lightmap::build_with(
+        &scene.polygons,
+        &bake.mesh,
+        h,
+        &lightmap_options(job, scene),
+        authored_uv,
+        job.lightmap.uv,
+    );
+    events.finish();
+    built
+        .with_context(|| format!("{}: cannot build the lightmap", job.input.display()))
+        .map_err(internal)
+}
+
+/// The exposure the vertex bake uses (`auto`: from the elements' radiosities).
+fn exposure(job: &Job, bake: &bake_core::Bake) -> f64 {
+    match job.exposure {
+        Exposure::Value(x) => x,
+        Exposure::Auto => {
+            let areas: Vec<f64> = bake.mesh.elements.iter().map(|e| e.area).collect();
+            exporter::auto_exposure(&areas, &bake.solution.b)
+        }
+    }
+}
+
+/// The bake's warnings: shown through [`Events::warn`] as they arise and kept for the report.
+pub(crate) struct Warnings<'a, E: Events> {
+    events: &'a E,
+    pub lines: Vec<String>,
+}
+
+impl<'a, E: Events> Warnings<'a, E> {
+    fn new(events: &'a E) -> Self {
+        Warnings {
+            events,
+            lines: Vec::new(),
+        }
+    }
+
+    pub fn push(&mut self, line: String) {
+        self.events.warn(&line);
+        self.lines.push(line);
+    }
+
+    fn extend(&mut self, lines: &[String]) {
+        for line in lines {
+            self.push(line.clone());
+        }
+    }
+}
