@@ -22,7 +22,8 @@
 
 mod common;
 
-use common::{bake, blender_installed, data_uri, skip, tools_dir, validate_clean, write_json};
+use bake_testkit::{blender_installed, data_uri, skip, tools_dir, validate_clean};
+use common::{bake, write_json};
 use glam::{DVec2, DVec3};
 use lightmap::UvMode::{Auto, Generate};
 use serde_json::{json, Value};

@@ -9,10 +9,8 @@
 
 mod common;
 
-use common::{
-    aim, bake, bake_json, blender_installed, lit_scene as scene, skip, tools_dir,
-    validator_available, write_json,
-};
+use bake_testkit::{blender_installed, skip, tools_dir, validator_available, validator_output};
+use common::{aim, bake, bake_json, lit_scene as scene, write_json};
 use exporter::report::{ElementEntry, Report};
 use serde_json::{json, Value};
 use std::f64::consts::PI;
@@ -433,11 +431,7 @@ fn blender_room_with_point_and_spot_lights_bakes() {
         return;
     }
     let files = [out, lightmap, kept];
-    let output = std::process::Command::new("node")
-        .arg(tools_dir().join("validate.mjs"))
-        .args(&files)
-        .output()
-        .expect("run node tools/validate.mjs");
+    let output = validator_output(&files);
     let text = String::from_utf8_lossy(&output.stdout);
     assert!(output.status.success(), "errors or warnings:\n{text}");
     let clean = text

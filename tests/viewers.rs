@@ -12,7 +12,8 @@
 
 mod common;
 
-use common::{bake, bake_in, blender_installed, fixture, skip, Run, CUBE_WALLS};
+use bake_testkit::{blender_installed, fixture, skip};
+use common::{bake, bake_in, Run, CUBE_WALLS};
 use exporter::report::{read_report, Report};
 use preview::image::RgbImage;
 use preview::{srgb8, Camera};
@@ -215,7 +216,7 @@ fn preview_exit_codes_and_messages() {
         assert_eq!(run.code, Some(code), "{run:#?}");
         assert!(run.stderr.contains(says), "{says:?} not in {run:#?}");
         assert_eq!(
-            common::file_names(out.path()),
+            bake_testkit::file_names(out.path()),
             Vec::<String>::new(),
             "files left behind"
         );
