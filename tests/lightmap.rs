@@ -18,7 +18,7 @@
 
 mod common;
 
-use bake_testkit::{file_names, fixture, skip, validator_available, validator_output};
+use bake_testkit::{file_names, fixture, validator_or_skip, validator_output};
 use common::{bake, write_text};
 use glam::{DVec2, DVec3};
 use lightmap::{Lightmap, Texel};
@@ -991,11 +991,7 @@ fn images_read_back_and_the_gltf_re_reads() {
 
 #[test]
 fn lightmap_outputs_pass_the_khronos_validator() {
-    if !validator_available() {
-        skip(
-            "BAKE_REQUIRE_VALIDATOR",
-            "the validator is not installed (run tools/install-validator)",
-        );
+    if !validator_or_skip() {
         return;
     }
     let dir = tempfile::tempdir().expect("a temporary directory");

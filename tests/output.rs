@@ -8,7 +8,7 @@
 
 mod common;
 
-use bake_testkit::{file_names, fixture, skip, validator_available, validator_output};
+use bake_testkit::{file_names, fixture, validator_or_skip, validator_output};
 use common::{bake, bake_in, report_without_timings, CUBE_WALLS};
 use exporter::report::{ElementEntry, Report};
 use gltf::mesh::util::ReadColors;
@@ -452,11 +452,7 @@ fn triangle_area(p: &[[f64; 3]; 3]) -> f64 {
 
 #[test]
 fn outputs_pass_the_khronos_validator() {
-    if !validator_available() {
-        skip(
-            "BAKE_REQUIRE_VALIDATOR",
-            "the validator is not installed (run tools/install-validator)",
-        );
+    if !validator_or_skip() {
         return;
     }
     let dir = tempfile::tempdir().expect("a temporary directory");

@@ -9,7 +9,7 @@
 
 mod common;
 
-use bake_testkit::{fixtures_dir, skip, validator_available, validator_output};
+use bake_testkit::{fixtures_dir, validator_or_skip, validator_output};
 use common::bake;
 use std::path::{Path, PathBuf};
 
@@ -84,11 +84,7 @@ fn message_code(line: &str) -> Option<(&str, &str)> {
 
 #[test]
 fn every_output_mode_of_every_fixture_is_validator_clean() {
-    if !validator_available() {
-        skip(
-            "BAKE_REQUIRE_VALIDATOR",
-            "the validator is not installed (run tools/install-validator)",
-        );
+    if !validator_or_skip() {
         return;
     }
     let scenes = fixtures();

@@ -12,7 +12,7 @@
 
 mod common;
 
-use bake_testkit::{blender_installed, fixture, skip};
+use bake_testkit::{blender_or_skip, fixture, skip};
 use common::{bake, bake_in, Run, CUBE_WALLS};
 use exporter::report::{read_report, Report};
 use preview::image::RgbImage;
@@ -347,11 +347,7 @@ fn pyrender_renders_the_reported_colours() {
 
 #[test]
 fn blender_imports_the_baked_colours_and_renders_what_preview_renders() {
-    if !blender_installed() {
-        skip(
-            "BAKE_REQUIRE_BLENDER",
-            "blender is not installed (tools/ci-clients --blender installs it)",
-        );
+    if !blender_or_skip() {
         return;
     }
     let dir = tempfile::tempdir().expect("a temporary directory");

@@ -8,7 +8,8 @@
 //! - Paths: [`fixture`] (`fixtures/` at the workspace root), [`shared_dir`] (the `../shared`
 //!   corpora next to the workspace), [`tools_dir`], and directory listings.
 //! - Optional tools and data: [`skip`] and [`required`] (the `BAKE_REQUIRE_*` variables),
-//!   the Khronos validator ([`validator_available`], [`validate_clean`]) and Blender.
+//!   the Khronos validator ([`validator_or_skip`], [`validate_clean`]) and Blender
+//!   ([`blender_or_skip`]).
 //!
 //! What it is not: a dependency of any library's or tool's normal build. Packages list it
 //! under `[dev-dependencies]` only, and it depends on nothing in the pipeline (only on
@@ -25,8 +26,8 @@ pub use gltf::{
     position_bytes, GltfBuilder, FLOAT, POINTS, TRIANGLES, UNSIGNED_INT, UNSIGNED_SHORT,
 };
 pub use optional::{
-    blender_installed, required, skip, skip_unless_set, validate_clean, validator_available,
-    validator_output,
+    blender_installed, blender_or_skip, required, skip, skip_unless_set, validate_clean,
+    validator_available, validator_or_skip, validator_output,
 };
 pub use paths::{
     file_names, files_with_extensions, fixture, fixtures_dir, shared_dir, tools_dir, workspace_dir,

@@ -58,6 +58,16 @@ pub fn validator_available() -> bool {
     installed && node_runs
 }
 
+/// Whether the validator is installed; when it is not, [`skip`]s for
+/// `BAKE_REQUIRE_VALIDATOR` (so `BAKE_REQUIRE_ALL=1` makes it fail too).
+pub fn validator_or_skip() -> bool {
+    here_or_skip(
+        validator_available(),
+        "BAKE_REQUIRE_VALIDATOR",
+        "the validator is not installed (run tools/install-validator)",
+    )
+}
+
 /// Runs the Khronos validator (`node tools/validate.mjs`) on `files`: one summary line per
 /// file (`PATH: N errors, N warnings, N infos`), each followed by its messages indented.
 pub fn validator_output(files: &[PathBuf]) -> Output {
@@ -96,4 +106,22 @@ pub fn blender_installed() -> bool {
         .arg("--version")
         .output()
         .is_ok_and(|o| o.status.success())
+}
+
+/// Whether `blender` runs; when it does not, [`skip`]s for `BAKE_REQUIRE_BLENDER` (so
+/// `BAKE_REQUIRE_ALL=1` makes it fail too).
+pub fn blender_or_skip() -> bool {
+    here_or_skip(
+        blender_installed(),
+        "BAKE_REQUIRE_BLENDER",
+        "blender is not installed (tools/ci-clients --blender installs it)",
+    )
+}
+
+/// `here`; when false, [`skip`]s first.
+fn here_or_skip(here: bool, variable: &str, why: &str) -> bool {
+    if !here {
+        skip(variable, why);
+    }
+    here
 }
