@@ -10,7 +10,8 @@
 
 mod common;
 
-use common::{bake, data_uri, write_json};
+use bake_testkit::data_uri;
+use common::{bake, write_json};
 use glam::DVec3;
 use serde_json::{json, Value};
 

@@ -5,9 +5,10 @@
 
 mod common;
 
+use bake_testkit::{file_names, fixture, GltfBuilder, POINTS, TRIANGLES};
 use common::{
-    bake, cube_with_sliver_json, file_names, fixture, report_without_timings,
-    write_obj_with_material, write_text, GltfBuilder, Run, CUBE_WALLS, TRIANGLE,
+    bake, cube_with_sliver_json, report_without_timings, write_obj_with_material, write_text, Run,
+    CUBE_WALLS, TRIANGLE,
 };
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -92,7 +93,8 @@ fn unsupported_extension() {
 fn truncated_gltf_json() {
     let dir = dir();
     let input = dir.path().join("truncated.gltf");
-    let full = serde_json::to_string(&GltfBuilder::triangles(&TRIANGLE).json()).unwrap();
+    let full =
+        serde_json::to_string(&GltfBuilder::wall(&TRIANGLE, TRIANGLES, None).json()).unwrap();
     write_text(&input, &full[..full.len() / 2]);
     assert_rejected(&input, &[], BAD_INPUT, &["malformed glTF", "EOF"]);
 }
@@ -109,7 +111,8 @@ fn json_that_is_not_gltf() {
 fn gltf_buffer_pointing_at_a_missing_bin() {
     let dir = dir();
     let input = dir.path().join("external.gltf");
-    let root = GltfBuilder::triangles(&TRIANGLE).json_with_buffer_uri("external-data.bin");
+    let root =
+        GltfBuilder::wall(&TRIANGLE, TRIANGLES, None).json_with_buffer_uri("external-data.bin");
     common::write_json(&input, &root);
     assert_rejected(
         &input,
@@ -173,7 +176,7 @@ fn gltf_nan_and_infinite_position() {
         let input = dir.path().join(name);
         let mut positions = TRIANGLE;
         positions[1][0] = bad;
-        GltfBuilder::triangles(&positions).write(&input);
+        GltfBuilder::wall(&positions, TRIANGLES, None).write_embedded(&input);
         assert_rejected(
             &input,
             &[],
@@ -210,11 +213,12 @@ fn gltf_colour_overflowing_to_infinity() {
     let input = dir.path().join("huge.gltf");
     // JSON has no NaN; 1e999 is the closest a file can get to a non-finite colour.
     let text = serde_json::to_string(
-        &GltfBuilder::triangles(&TRIANGLE)
-            .material(
-                json!({ "pbrMetallicRoughness": { "baseColorFactor": [0.5, 0.5, 0.5, 1.0] } }),
-            )
-            .json(),
+        &GltfBuilder::wall(
+            &TRIANGLE,
+            TRIANGLES,
+            Some(json!({ "pbrMetallicRoughness": { "baseColorFactor": [0.5, 0.5, 0.5, 1.0] } })),
+        )
+        .json(),
     )
     .unwrap()
     .replacen("[0.5,0.5,0.5,1.0]", "[1e999,0.5,0.5,1.0]", 1);
@@ -241,9 +245,12 @@ fn obj_nan_colour() {
 fn reflectance_outside_zero_one() {
     let dir = dir();
     let input = dir.path().join("bright.gltf");
-    GltfBuilder::triangles(&TRIANGLE)
-        .material(json!({ "pbrMetallicRoughness": { "baseColorFactor": [1.5, 0.5, 0.5, 1.0] } }))
-        .write(&input);
+    GltfBuilder::wall(
+        &TRIANGLE,
+        TRIANGLES,
+        Some(json!({ "pbrMetallicRoughness": { "baseColorFactor": [1.5, 0.5, 0.5, 1.0] } })),
+    )
+    .write_embedded(&input);
     assert_rejected(
         &input,
         &[],
@@ -274,17 +281,23 @@ fn negative_emission() {
     // The schema forbids a negative emissiveFactor; the importer refuses it all the same,
     // and a negative KHR_materials_emissive_strength too.
     let factor = dir.path().join("factor.gltf");
-    GltfBuilder::triangles(&TRIANGLE)
-        .material(json!({ "emissiveFactor": [-1.0, 0.0, 0.0] }))
-        .write(&factor);
+    GltfBuilder::wall(
+        &TRIANGLE,
+        TRIANGLES,
+        Some(json!({ "emissiveFactor": [-1.0, 0.0, 0.0] })),
+    )
+    .write_embedded(&factor);
     assert_rejected(&factor, &[], BAD_INPUT, &["mesh \"wall\"", "negative"]);
     let strength = dir.path().join("strength.gltf");
-    GltfBuilder::triangles(&TRIANGLE)
-        .material(json!({
+    GltfBuilder::wall(
+        &TRIANGLE,
+        TRIANGLES,
+        Some(json!({
             "emissiveFactor": [1.0, 1.0, 1.0],
             "extensions": { "KHR_materials_emissive_strength": { "emissiveStrength": -2.0 } }
-        }))
-        .write(&strength);
+        })),
+    )
+    .write_embedded(&strength);
     assert_rejected(&strength, &[], BAD_INPUT, &["mesh \"wall\"", "negative"]);
 }
 
@@ -294,7 +307,7 @@ fn negative_emission() {
 fn gltf_with_only_points() {
     let dir = dir();
     let input = dir.path().join("points.gltf");
-    GltfBuilder::triangles(&TRIANGLE).mode(0).write(&input);
+    GltfBuilder::wall(&TRIANGLE, POINTS, None).write_embedded(&input);
     assert_rejected(&input, &[], BAD_INPUT, &["nothing left to bake"]);
 }
 
@@ -310,17 +323,21 @@ fn obj_with_only_vertices() {
 fn gltf_with_only_degenerate_triangles() {
     let dir = dir();
     let input = dir.path().join("flat.gltf");
-    GltfBuilder::triangles(&[
-        // collinear
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        [2.0, 0.0, 0.0],
-        // a repeated vertex
-        [0.0, 1.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [1.0, 1.0, 0.0],
-    ])
-    .write(&input);
+    GltfBuilder::wall(
+        &[
+            // collinear
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            // a repeated vertex
+            [0.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [1.0, 1.0, 0.0],
+        ],
+        TRIANGLES,
+        None,
+    )
+    .write_embedded(&input);
     assert_rejected(&input, &[], BAD_INPUT, &["nothing left to bake"]);
 }
 
@@ -635,8 +652,8 @@ fn inputs_outside_the_folder_are_refused_unless_allowed() {
     let scenes = dir.path().join("scenes");
     std::fs::create_dir_all(scenes.join("sub")).expect("mkdir");
     let outside = dir.path().join("outside.bin");
-    std::fs::write(&outside, common::position_bytes(&TRIANGLE)).expect("write");
-    let builder = GltfBuilder::triangles(&TRIANGLE);
+    std::fs::write(&outside, bake_testkit::position_bytes(&TRIANGLE)).expect("write");
+    let builder = GltfBuilder::wall(&TRIANGLE, TRIANGLES, None);
     let absolute = outside.display().to_string();
     let file_uri = format!("file://{absolute}");
     for (name, uri) in [

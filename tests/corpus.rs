@@ -10,7 +10,8 @@
 
 mod common;
 
-use common::{files_with_extensions, run_limited, skip};
+use bake_testkit::{files_with_extensions, shared_dir, skip};
+use common::run_limited;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -18,7 +19,6 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-const CORPUS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/corpus");
 /// Wall-clock limit per file; the run is killed past it.
 const TIME_LIMIT: Duration = Duration::from_secs(20);
 /// Address-space cap per run (`ulimit -v`, KiB): 4 GiB.
@@ -94,11 +94,11 @@ fn error_kind(line: &str) -> String {
 
 #[test]
 fn every_corpus_file_bakes_or_is_refused_in_one_line() {
-    let corpus = Path::new(CORPUS);
+    let corpus = shared_dir().join("corpus");
     if !corpus.is_dir() {
         skip(
             "BAKE_REQUIRE_CORPUS",
-            &format!("the corpus {CORPUS} is not there"),
+            &format!("the corpus {} is not there", corpus.display()),
         );
         return;
     }

@@ -8,7 +8,8 @@
 mod common;
 
 use bake_core::{Bake, Request, Settings, TransportKind};
-use common::{bake, fixture};
+use bake_testkit::fixture;
+use common::bake;
 use mesher::Subdivision;
 
 fn run(name: &str, size: f64, transport: TransportKind, link_tolerance: Option<f64>) -> Bake {

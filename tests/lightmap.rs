@@ -18,11 +18,11 @@
 
 mod common;
 
-use common::{bake, file_names, fixture, skip, tools_dir, validator_available, write_text};
+use bake_testkit::{file_names, fixture, validator_or_skip, validator_output};
+use common::{bake, write_text};
 use glam::{DVec2, DVec3};
 use lightmap::{Lightmap, Texel};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
 
 // ---- scenes ----
@@ -991,11 +991,7 @@ fn images_read_back_and_the_gltf_re_reads() {
 
 #[test]
 fn lightmap_outputs_pass_the_khronos_validator() {
-    if !validator_available() {
-        skip(
-            "BAKE_REQUIRE_VALIDATOR",
-            "the validator is not installed (run tools/install-validator)",
-        );
+    if !validator_or_skip() {
         return;
     }
     let dir = tempfile::tempdir().expect("a temporary directory");
@@ -1014,11 +1010,7 @@ fn lightmap_outputs_pass_the_khronos_validator() {
         files.push(out);
         files.push(dir.path().join(format!("{stem}.lightmap.{extension}")));
     }
-    let output = Command::new("node")
-        .arg(tools_dir().join("validate.mjs"))
-        .args(&files)
-        .output()
-        .expect("run node tools/validate.mjs");
+    let output = validator_output(&files);
     let stdout = String::from_utf8_lossy(&output.stdout);
     println!("{stdout}{}", String::from_utf8_lossy(&output.stderr));
     assert!(output.status.success(), "errors or warnings:\n{stdout}");

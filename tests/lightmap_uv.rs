@@ -22,7 +22,8 @@
 
 mod common;
 
-use common::{bake, blender_installed, data_uri, skip, tools_dir, validate_clean, write_json};
+use bake_testkit::{blender_or_skip, data_uri, tools_dir, validate_clean};
+use common::{bake, write_json};
 use glam::{DVec2, DVec3};
 use lightmap::UvMode::{Auto, Generate};
 use serde_json::{json, Value};
@@ -317,11 +318,7 @@ fn uv_at(tris: &Triangles, point: DVec3) -> Option<DVec2> {
 
 #[test]
 fn blender_lightmap_pack_is_kept_as_authored() {
-    if !blender_installed() {
-        skip(
-            "BAKE_REQUIRE_BLENDER",
-            "blender is not installed (tools/ci-clients --blender)",
-        );
+    if !blender_or_skip() {
         return;
     }
     let dir = tempfile::tempdir().expect("a temporary directory");

@@ -9,10 +9,8 @@
 
 mod common;
 
-use common::{
-    aim, bake, bake_json, blender_installed, lit_scene as scene, skip, tools_dir,
-    validator_available, write_json,
-};
+use bake_testkit::{blender_or_skip, tools_dir, validator_or_skip, validator_output};
+use common::{aim, bake, bake_json, lit_scene as scene, write_json};
 use exporter::report::{ElementEntry, Report};
 use serde_json::{json, Value};
 use std::f64::consts::PI;
@@ -325,11 +323,7 @@ fn unusable_lights_are_skipped_with_a_warning_and_obj_has_none() {
 /// validator-clean; the lightmap bake carries the lights only with `--keep-lights`.
 #[test]
 fn blender_room_with_point_and_spot_lights_bakes() {
-    if !blender_installed() {
-        skip(
-            "BAKE_REQUIRE_BLENDER",
-            "blender is not installed (tools/ci-clients --blender installs it)",
-        );
+    if !blender_or_skip() {
         return;
     }
     let dir = tempfile::tempdir().expect("a temporary directory");
@@ -425,19 +419,11 @@ fn blender_room_with_point_and_spot_lights_bakes() {
     .success();
     assert_eq!(lights_in(&kept), 2);
 
-    if !validator_available() {
-        skip(
-            "BAKE_REQUIRE_VALIDATOR",
-            "the validator is not installed (run tools/install-validator)",
-        );
+    if !validator_or_skip() {
         return;
     }
     let files = [out, lightmap, kept];
-    let output = std::process::Command::new("node")
-        .arg(tools_dir().join("validate.mjs"))
-        .args(&files)
-        .output()
-        .expect("run node tools/validate.mjs");
+    let output = validator_output(&files);
     let text = String::from_utf8_lossy(&output.stdout);
     assert!(output.status.success(), "errors or warnings:\n{text}");
     let clean = text

@@ -5,7 +5,8 @@
 
 mod common;
 
-use common::{bake, fixture, report_without_timings};
+use bake_testkit::fixture;
+use common::{bake, report_without_timings};
 use std::path::{Path, PathBuf};
 
 /// The two-room fixture (OBJ + MTL) copied into `dir`, its lamp's `Ke` replaced by `ke`.

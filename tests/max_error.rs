@@ -8,7 +8,8 @@
 
 mod common;
 
-use common::{bake, write_json, GltfBuilder};
+use bake_testkit::{GltfBuilder, TRIANGLES};
+use common::{bake, write_json};
 use exporter::report::{read_report, Report};
 use serde_json::{json, Value};
 use std::path::Path;
@@ -40,9 +41,7 @@ fn box_gltf(rho: Option<f32>) -> Value {
     if let Some(r) = rho {
         material["pbrMetallicRoughness"] = json!({ "baseColorFactor": [r, r, r, 1.0] });
     }
-    GltfBuilder::triangles(&box_triangles())
-        .material(material)
-        .json()
+    GltfBuilder::wall(&box_triangles(), TRIANGLES, Some(material)).json()
 }
 
 /// Bakes `doc` with `args`; the run and (on success) its report.
@@ -138,9 +137,7 @@ fn a_bright_cube_at_high_quality_stays_dense_and_within_the_target() {
         .iter()
         .map(|p| [p[0], p[1] * 2.0, p[2] * 0.5])
         .collect();
-    doc = GltfBuilder::triangles(&cube)
-        .material(doc["materials"][0].clone())
-        .json();
+    doc = GltfBuilder::wall(&cube, TRIANGLES, Some(doc["materials"][0].clone())).json();
     let dir = tempfile::tempdir().expect("tempdir");
     let (out, report) = run(dir.path(), &doc, &["--quality", "high"]);
     let report = report.unwrap_or_else(|| panic!("{out:#?}"));

@@ -5,7 +5,8 @@
 
 mod common;
 
-use common::{bake, fixture, report_without_timings};
+use bake_testkit::fixture;
+use common::{bake, report_without_timings};
 use exporter::report::{ElementEntry, Report};
 use form_factor::{ContourOptions, FormFactors, Occluders, Occlusion};
 use mesher::{mesh, Subdivision};

@@ -8,15 +8,12 @@
 
 mod common;
 
-use common::{
-    bake, bake_in, file_names, fixture, report_without_timings, skip, tools_dir,
-    validator_available, CUBE_WALLS,
-};
+use bake_testkit::{file_names, fixture, validator_or_skip, validator_output};
+use common::{bake, bake_in, report_without_timings, CUBE_WALLS};
 use exporter::report::{ElementEntry, Report};
 use gltf::mesh::util::ReadColors;
 use gltf::mesh::Semantic;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 const SUBDIV: usize = 4;
 /// f32 storage of f64 results.
@@ -455,11 +452,7 @@ fn triangle_area(p: &[[f64; 3]; 3]) -> f64 {
 
 #[test]
 fn outputs_pass_the_khronos_validator() {
-    if !validator_available() {
-        skip(
-            "BAKE_REQUIRE_VALIDATOR",
-            "the validator is not installed (run tools/install-validator)",
-        );
+    if !validator_or_skip() {
         return;
     }
     let dir = tempfile::tempdir().expect("a temporary directory");
@@ -478,11 +471,7 @@ fn outputs_pass_the_khronos_validator() {
         .success();
         files.push(path);
     }
-    let output = Command::new("node")
-        .arg(tools_dir().join("validate.mjs"))
-        .args(&files)
-        .output()
-        .expect("run node tools/validate.mjs");
+    let output = validator_output(&files);
     let stdout = String::from_utf8_lossy(&output.stdout);
     let stderr = String::from_utf8_lossy(&output.stderr);
     println!("{stdout}{stderr}");

@@ -7,7 +7,8 @@
 
 mod common;
 
-use common::{bake_in, file_names, fixture, Run};
+use bake_testkit::{file_names, fixture};
+use common::{bake_in, Run};
 use std::collections::BTreeMap;
 use std::ffi::OsString;
 use std::path::Path;

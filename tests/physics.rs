@@ -2,15 +2,10 @@
 //! direct light against closed-form form factors, and format independence. Each test runs the
 //! real binary on real files and reads its JSON report.
 
+use bake_testkit::fixture;
 use exporter::report::{read_report, ElementEntry, Report};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("fixtures")
-        .join(name)
-}
 
 /// Runs `bake input out.glb --report r.json --ff-estimator contour args...` and returns the
 /// report. These tests check the physics to ~1e-10, so they use the exact form factors (the

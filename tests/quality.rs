@@ -5,7 +5,8 @@
 
 mod common;
 
-use common::{bake, fixture};
+use bake_testkit::fixture;
+use common::bake;
 use exporter::report::{read_report, Report};
 
 fn bake_cube(args: &[&str]) -> Report {

@@ -8,14 +8,18 @@
 
 mod common;
 
-use common::{bake_default_in, skip};
+use bake_testkit::{shared_dir, skip};
+use common::bake_default_in;
 use exporter::report::{read_report, Report};
 use std::path::{Path, PathBuf};
 
-const REPRO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/corpus/repro");
+/// `../shared/corpus/repro`.
+fn repro_dir() -> PathBuf {
+    shared_dir().join("corpus/repro")
+}
 
 fn repro(name: &str) -> Option<PathBuf> {
-    let path = Path::new(REPRO).join(name);
+    let path = repro_dir().join(name);
     if path.is_file() {
         Some(path)
     } else {
@@ -91,7 +95,7 @@ fn graz_overlap_bakes_with_default_options_like_the_hand_cleaned_file() {
     let hand = tempfile::tempdir().expect("tempdir");
     std::fs::write(hand.path().join("graz_overlap.obj"), cleaned).expect("write");
     std::fs::copy(
-        Path::new(REPRO).join("graz_overlap.mtl"),
+        repro_dir().join("graz_overlap.mtl"),
         hand.path().join("graz_overlap.mtl"),
     )
     .expect("copy the mtl");

@@ -11,7 +11,8 @@
 
 mod common;
 
-use common::{files_with_extensions, run_limited, skip};
+use bake_testkit::{files_with_extensions, glb, glb_chunks, skip, tools_dir};
+use common::run_limited;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -81,27 +82,14 @@ fn add_sun(doc: &mut Value) -> bool {
 fn with_sun(bytes: &[u8]) -> Option<Vec<u8>> {
     if bytes.starts_with(b"glTF") {
         // GLB: 12-byte header, JSON chunk, optional BIN chunk (glTF 2.0 "GLB File Format").
-        let word = |at: usize| -> Option<usize> {
-            Some(u32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?) as usize)
-        };
-        let json_len = word(12)?;
-        let mut doc: Value = serde_json::from_slice(bytes.get(20..20 + json_len)?).ok()?;
+        let mut chunks = glb_chunks(bytes)?;
+        let mut doc: Value = serde_json::from_slice(chunks.first()?.1).ok()?;
         if !add_sun(&mut doc) {
             return None;
         }
-        let rest = bytes.get(20 + json_len..)?;
-        let mut json = serde_json::to_vec(&doc).ok()?;
-        json.resize(json.len().next_multiple_of(4), b' ');
-        let total = 12 + 8 + json.len() + rest.len();
-        let mut out = Vec::with_capacity(total);
-        out.extend_from_slice(b"glTF");
-        out.extend_from_slice(&2u32.to_le_bytes());
-        out.extend_from_slice(&(total as u32).to_le_bytes());
-        out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"JSON");
-        out.extend_from_slice(&json);
-        out.extend_from_slice(rest);
-        Some(out)
+        let json = serde_json::to_vec(&doc).ok()?;
+        chunks[0].1 = &json;
+        Some(glb(&chunks))
     } else {
         let mut doc: Value = serde_json::from_slice(bytes).ok()?;
         add_sun(&mut doc).then(|| serde_json::to_vec_pretty(&doc).ok())?
@@ -287,7 +275,7 @@ fn compressed_variants(model: &Path, dir: &Path, k: usize) -> Vec<(&'static str,
             &format!("gltfpack does not run ({e}; tools/ci-clients installs it)"),
         ),
     }
-    let tools = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools");
+    let tools = tools_dir();
     if tools.join(".draco/node_modules/draco3dgltf").is_dir() {
         let draco = dir.join(format!("draco-{k}.glb"));
         match Command::new("node")

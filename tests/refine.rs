@@ -6,7 +6,8 @@
 
 mod common;
 
-use common::{aim, bake_default_in, bake_json_default, fixture, lit_scene};
+use bake_testkit::fixture;
+use common::{aim, bake_default_in, bake_json_default, lit_scene};
 use gltf::Semantic;
 use serde_json::json;
 use std::collections::HashMap;
@@ -197,7 +198,7 @@ fn refined_sun_shadow_is_within_two_percent_with_a_conforming_mesh() {
     assert!(refinement.passes > 0 && refinement.elements_after > refinement.elements_before);
     assert!(refinement.discontinuity_vertices > 0);
     // The refined output is valid glTF (hanging-vertex fans, copied vertices).
-    common::validate_clean(&[dir.path().join("in-out.gltf")]);
+    bake_testkit::validate_clean(&[dir.path().join("in-out.gltf")]);
 
     // The uniform mesh of the same options does not pass: what refinement bought.
     let uniform = bake_json_default(dir.path(), "off", &sun_floor(), &["--refine", "off"]);
@@ -471,7 +472,7 @@ fn refined_bakes_are_deterministic() {
 #[test]
 fn refinement_options_are_checked() {
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let cube = common::fixture("cube.gltf");
+    let cube = bake_testkit::fixture("cube.gltf");
     let out = dir.path().join("out.glb");
     let links = dir.path().join("cube.links");
     let zero = common::bake_default_in(

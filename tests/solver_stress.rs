@@ -4,15 +4,10 @@
 //! non-convergence, and conservation of energy (emitted = absorbed + escaped) on closed and
 //! open scenes. Every run writes into a temporary directory and is checked through its report.
 
+use bake_testkit::{file_names, fixture};
 use exporter::report::{read_report, Report, SolverMethod};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("fixtures")
-        .join(name)
-}
 
 /// Runs `bake input dir/out.glb --report dir/report.json --ff-estimator contour args...`
 /// (exact form factors: these tests hold the solver to ~1e-12).
@@ -50,15 +45,6 @@ fn error_lines(out: &Output) -> Vec<String> {
         .filter(|l| !l.is_empty() && !l.starts_with("bake: warning:"))
         .map(String::from)
         .collect()
-}
-
-fn file_names(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .expect("list dir")
-        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
 }
 
 /// A material: name, Kd, Ke.

@@ -3,7 +3,8 @@
 
 mod common;
 
-use common::{bake, bake_json, data_uri, write_json};
+use bake_testkit::data_uri;
+use common::{bake, bake_json, write_json};
 use exporter::report::Report;
 use serde_json::{json, Value};
 
@@ -68,7 +69,7 @@ fn floor_scene(factor: [f64; 3], texture: Option<(Vec<u8>, bool)>) -> Value {
         extra = json!({
             "textures": [{ "source": 0, "sampler": 0 }],
             "samplers": [sampler],
-            "images": [{ "uri": format!("data:image/png;base64,{}", common::base64(&png)) }],
+            "images": [{ "uri": format!("data:image/png;base64,{}", bake_testkit::base64(&png)) }],
         });
     }
     let mut doc = json!({
@@ -240,10 +241,9 @@ fn asset_scene() -> (Value, Vec<u8>) {
     });
     let mut doc = floor_scene([0.9, 0.8, 0.7], Some((pattern.clone(), true)));
     let flat_normal = png(4, 4, |_, _| [128, 128, 255]);
-    doc["images"]
-        .as_array_mut()
-        .expect("images")
-        .push(json!({ "uri": format!("data:image/png;base64,{}", common::base64(&flat_normal)) }));
+    doc["images"].as_array_mut().expect("images").push(
+        json!({ "uri": format!("data:image/png;base64,{}", bake_testkit::base64(&flat_normal)) }),
+    );
     doc["textures"]
         .as_array_mut()
         .expect("textures")
@@ -487,7 +487,7 @@ fn both_outputs_keep_the_textured_material_and_its_uvs() {
         files.push(out);
         files.push(side);
     }
-    if let Some(stdout) = common::validate_clean(&files) {
+    if let Some(stdout) = bake_testkit::validate_clean(&files) {
         println!("{stdout}");
     }
 }
@@ -567,7 +567,7 @@ fn with_floor_colours(doc: Value) -> Value {
 
 /// [`floor_scene`]'s floor with COLOR_0 = `colours` at its four corners.
 fn with_colours(mut doc: Value, colours: [[f32; 3]; 4]) -> Value {
-    let bytes = common::position_bytes(&colours);
+    let bytes = bake_testkit::position_bytes(&colours);
     doc["buffers"]
         .as_array_mut()
         .expect("buffers")
@@ -658,7 +658,7 @@ fn input_vertex_colours_multiply_rho_exactly() {
             floor_primitives, 1,
             "the lightmap bake keeps the floor's COLOR_0"
         );
-        common::validate_clean(&[out, side]);
+        bake_testkit::validate_clean(&[out, side]);
     }
 }
 
@@ -724,7 +724,7 @@ fn obj_map_kd_is_a_base_colour_texture() {
             .materials()
             .any(|m| m.pbr_metallic_roughness().base_color_texture().is_some()));
     }
-    common::validate_clean(&[out, side]);
+    bake_testkit::validate_clean(&[out, side]);
 }
 
 #[test]
@@ -773,7 +773,7 @@ fn smooth_textured_bake_averages_h_to_vertices() {
     }
     assert!(vertices > 100);
     let side = dir.path().join("smooth.lightmap.gltf");
-    common::validate_clean(&[out, side]);
+    bake_testkit::validate_clean(&[out, side]);
 }
 
 /// The first material with a base-colour texture, and the TEXCOORD set that texture reads.
@@ -813,7 +813,7 @@ fn a_texture_on_the_second_uv_set_moves_to_texcoord_2_in_the_lightmap_bake() {
     assert!(textured.get(&gltf::Semantic::TexCoords(2)).is_some());
     let (document, _, _) = gltf::import(&out).expect("re-read the vertex bake");
     assert_eq!(textured_material(&document).1, 0);
-    common::validate_clean(&[out, side]);
+    bake_testkit::validate_clean(&[out, side]);
 }
 
 /// An image file is read like a buffer: inside the scene's folder (else refused unless

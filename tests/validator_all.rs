@@ -9,9 +9,9 @@
 
 mod common;
 
-use common::{bake, skip, tools_dir, validator_available};
+use bake_testkit::{fixtures_dir, validator_or_skip, validator_output};
+use common::bake;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 /// Output modes: extra arguments, one bake per entry and per fixture, container and shading.
 /// The lightmap `--target` modes come from another branch: each is one more line here, e.g.
@@ -46,7 +46,7 @@ const EXPLAINED_INFOS: &[(&str, &str)] = &[
 /// The scenes in `fixtures/`: every .gltf, .glb and .obj (the .bin and .mtl files are their
 /// side files), sorted by name.
 fn fixtures() -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures");
+    let dir = fixtures_dir();
     let mut scenes: Vec<PathBuf> = std::fs::read_dir(&dir)
         .expect("list fixtures/")
         .map(|entry| entry.expect("a directory entry").path())
@@ -84,11 +84,7 @@ fn message_code(line: &str) -> Option<(&str, &str)> {
 
 #[test]
 fn every_output_mode_of_every_fixture_is_validator_clean() {
-    if !validator_available() {
-        skip(
-            "BAKE_REQUIRE_VALIDATOR",
-            "the validator is not installed (run tools/install-validator)",
-        );
+    if !validator_or_skip() {
         return;
     }
     let scenes = fixtures();
@@ -131,11 +127,7 @@ fn every_output_mode_of_every_fixture_is_validator_clean() {
         }
     }
 
-    let output = Command::new("node")
-        .arg(tools_dir().join("validate.mjs"))
-        .args(&outputs)
-        .output()
-        .expect("run node tools/validate.mjs");
+    let output = validator_output(&outputs);
     let stdout = String::from_utf8_lossy(&output.stdout);
     let stderr = String::from_utf8_lossy(&output.stderr);
     // The summary lines, with paths relative to the temporary directory.

@@ -12,7 +12,8 @@
 
 mod common;
 
-use common::{bake, bake_in, blender_installed, fixture, skip, Run, CUBE_WALLS};
+use bake_testkit::{blender_or_skip, fixture, skip};
+use common::{bake, bake_in, Run, CUBE_WALLS};
 use exporter::report::{read_report, Report};
 use preview::image::RgbImage;
 use preview::{srgb8, Camera};
@@ -215,7 +216,7 @@ fn preview_exit_codes_and_messages() {
         assert_eq!(run.code, Some(code), "{run:#?}");
         assert!(run.stderr.contains(says), "{says:?} not in {run:#?}");
         assert_eq!(
-            common::file_names(out.path()),
+            bake_testkit::file_names(out.path()),
             Vec::<String>::new(),
             "files left behind"
         );
@@ -346,11 +347,7 @@ fn pyrender_renders_the_reported_colours() {
 
 #[test]
 fn blender_imports_the_baked_colours_and_renders_what_preview_renders() {
-    if !blender_installed() {
-        skip(
-            "BAKE_REQUIRE_BLENDER",
-            "blender is not installed (tools/ci-clients --blender installs it)",
-        );
+    if !blender_or_skip() {
         return;
     }
     let dir = tempfile::tempdir().expect("a temporary directory");

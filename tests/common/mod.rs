@@ -1,8 +1,10 @@
-//! Helpers shared by the CLI's end-to-end tests: running the `bake` binary, listing output
-//! directories, and writing small (often deliberately broken) glTF and OBJ inputs.
+//! Helpers shared by the CLI's end-to-end tests: running the `bake` binary and writing small
+//! (often deliberately broken) glTF and OBJ inputs. What other packages' tests need too (the
+//! glTF builder, base64, fixtures, skipping) is in `bake-testkit`.
 
 #![allow(dead_code)]
 
+use bake_testkit::{base64, data_uri, fixture, position_bytes};
 use serde_json::{json, Value};
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
@@ -95,29 +97,6 @@ where
     }
 }
 
-/// `fixtures/<name>` in the workspace.
-pub fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("fixtures")
-        .join(name)
-}
-
-/// The names of everything in `dir` (hidden files included), sorted.
-pub fn file_names(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .expect("list the directory")
-        .map(|entry| {
-            entry
-                .expect("a directory entry")
-                .file_name()
-                .to_string_lossy()
-                .into_owned()
-        })
-        .collect();
-    names.sort();
-    names
-}
-
 /// A bake report with `timings` and `peak_rss_mib` (the only parts that may change between
 /// runs) removed.
 pub fn report_without_timings(path: &Path) -> exporter::report::Report {
@@ -136,32 +115,6 @@ pub fn write_json(path: &Path, value: &Value) {
     write_text(path, &text);
 }
 
-/// Standard base64 with padding (RFC 4648), for `data:` URIs.
-pub fn base64(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            chunk.get(1).copied().unwrap_or(0),
-            chunk.get(2).copied().unwrap_or(0),
-        ];
-        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
-        for k in 0..4 {
-            if k <= chunk.len() {
-                out.push(char::from(ALPHABET[(n >> (18 - 6 * k)) as usize & 63]));
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
-}
-
-pub fn data_uri(bytes: &[u8]) -> String {
-    format!("data:application/octet-stream;base64,{}", base64(bytes))
-}
-
 /// `image` encoded as a PNG data URI (for textures embedded in written glTF).
 pub fn png_data_uri(image: image::DynamicImage) -> String {
     let mut bytes = Vec::new();
@@ -172,92 +125,6 @@ pub fn png_data_uri(image: image::DynamicImage) -> String {
         )
         .expect("encode a PNG");
     format!("data:image/png;base64,{}", base64(&bytes))
-}
-
-/// Little-endian f32 bytes of the positions.
-pub fn position_bytes(positions: &[[f32; 3]]) -> Vec<u8> {
-    positions
-        .iter()
-        .flatten()
-        .flat_map(|v| v.to_le_bytes())
-        .collect()
-}
-
-/// Component-wise min and max over the finite values (glTF requires POSITION bounds; a
-/// NaN can't be written in JSON, so the bounds of a poisoned buffer skip it).
-fn finite_bounds(positions: &[[f32; 3]]) -> (Value, Value) {
-    let mut min = [0.0f32; 3];
-    let mut max = [0.0f32; 3];
-    for axis in 0..3 {
-        let finite = positions.iter().map(|p| p[axis]).filter(|v| v.is_finite());
-        min[axis] = finite.clone().fold(f32::INFINITY, f32::min);
-        max[axis] = finite.fold(f32::NEG_INFINITY, f32::max);
-    }
-    (json!(min), json!(max))
-}
-
-/// A one-mesh glTF: node "wall" → mesh "wall" with one non-indexed primitive of `mode`
-/// (4 = TRIANGLES, 0 = POINTS) over `positions`, stored in buffer 0 as a data URI. With
-/// `material`, it becomes material 0 and the primitive uses it.
-pub struct GltfBuilder {
-    pub positions: Vec<[f32; 3]>,
-    pub mode: u32,
-    pub material: Option<Value>,
-}
-
-impl GltfBuilder {
-    pub fn triangles(positions: &[[f32; 3]]) -> Self {
-        GltfBuilder {
-            positions: positions.to_vec(),
-            mode: 4,
-            material: None,
-        }
-    }
-
-    pub fn mode(mut self, mode: u32) -> Self {
-        self.mode = mode;
-        self
-    }
-
-    pub fn material(mut self, material: Value) -> Self {
-        self.material = Some(material);
-        self
-    }
-
-    /// The document, with the buffer stored at `uri`.
-    pub fn json_with_buffer_uri(&self, uri: &str) -> Value {
-        let bytes = position_bytes(&self.positions);
-        let (min, max) = finite_bounds(&self.positions);
-        let mut primitive = json!({ "attributes": { "POSITION": 0 }, "mode": self.mode });
-        let mut root = json!({
-            "asset": { "version": "2.0" },
-            "scene": 0,
-            "scenes": [{ "nodes": [0] }],
-            "nodes": [{ "name": "wall", "mesh": 0 }],
-            "accessors": [{
-                "bufferView": 0, "componentType": 5126, "count": self.positions.len(),
-                "type": "VEC3", "min": min, "max": max
-            }],
-            "bufferViews": [{ "buffer": 0, "byteLength": bytes.len() }],
-            "buffers": [{ "byteLength": bytes.len(), "uri": uri }],
-        });
-        if let Some(material) = &self.material {
-            primitive["material"] = json!(0);
-            root["materials"] = json!([material]);
-        }
-        root["meshes"] = json!([{ "name": "wall", "primitives": [primitive] }]);
-        root
-    }
-
-    /// The document with its buffer embedded as a data URI.
-    pub fn json(&self) -> Value {
-        self.json_with_buffer_uri(&data_uri(&position_bytes(&self.positions)))
-    }
-
-    /// Writes `path` with an embedded buffer.
-    pub fn write(&self, path: &Path) {
-        write_json(path, &self.json());
-    }
 }
 
 /// A unit right triangle in z = 0, counter-clockwise about +z.
@@ -365,83 +232,6 @@ fn bake_json_with(
     exporter::report::read_report(&report).expect("read the report")
 }
 
-/// The repository's `tools/` directory.
-pub fn tools_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tools")
-}
-
-/// Whether `node` runs and `tools/install-validator` has installed the Khronos validator.
-pub fn validator_available() -> bool {
-    let installed = tools_dir()
-        .join(".validator/node_modules/gltf-validator/package.json")
-        .is_file();
-    let node_runs = Command::new("node")
-        .arg("--version")
-        .output()
-        .is_ok_and(|output| output.status.success());
-    installed && node_runs
-}
-
-/// Whether the test that needs what `variable` names must run: `variable=1`, or
-/// `BAKE_REQUIRE_ALL=1` (as `.ci/run` sets).
-pub fn required(variable: &str) -> bool {
-    let set = |name: &str| std::env::var(name).is_ok_and(|v| v == "1");
-    set(variable) || set("BAKE_REQUIRE_ALL")
-}
-
-/// A test that cannot run here because `why` (e.g. "the validator is not installed"): fails
-/// when [`required`]`(variable)`, else says `skipped: …` on stderr. Written straight to the
-/// process's stderr, past libtest's capture of `print!`/`eprint!`, so `cargo test` shows
-/// it even when the test passes.
-pub fn skip(variable: &str, why: &str) {
-    assert!(
-        !required(variable),
-        "{variable}=1 (or BAKE_REQUIRE_ALL=1) but {why}"
-    );
-    use std::io::Write;
-    let _ = writeln!(
-        std::io::stderr(),
-        "skipped: {} ({why}; {variable}=1 makes it fail)",
-        std::thread::current().name().unwrap_or("a test")
-    );
-}
-
-/// Whether `blender` runs.
-pub fn blender_installed() -> bool {
-    Command::new("blender")
-        .arg("--version")
-        .output()
-        .is_ok_and(|o| o.status.success())
-}
-
-/// Runs the Khronos validator (`node tools/validate.mjs`) on `files` and returns its output,
-/// asserting that every file has 0 errors and 0 warnings. `None` (with a message) when the
-/// validator is not installed, unless `BAKE_REQUIRE_VALIDATOR=1`.
-pub fn validate_clean(files: &[PathBuf]) -> Option<String> {
-    if !validator_available() {
-        let required = std::env::var("BAKE_REQUIRE_VALIDATOR").is_ok_and(|v| v == "1");
-        assert!(
-            !required,
-            "BAKE_REQUIRE_VALIDATOR=1 but the validator is not installed"
-        );
-        eprintln!("skipped the validator: not installed (run tools/install-validator)");
-        return None;
-    }
-    let output = Command::new("node")
-        .arg(tools_dir().join("validate.mjs"))
-        .args(files)
-        .output()
-        .expect("run node tools/validate.mjs");
-    let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
-    let summaries: Vec<&str> = stdout.lines().filter(|l| !l.starts_with(' ')).collect();
-    assert_eq!(summaries.len(), files.len(), "{stdout}");
-    for line in &summaries {
-        assert!(line.contains(": 0 errors, 0 warnings, "), "{stdout}");
-    }
-    assert!(output.status.success(), "{stdout}");
-    Some(stdout)
-}
-
 /// A glTF scene: one mesh per (triangles, baseColor) and one light node per light
 /// `(light json, node json without the extension)`.
 pub fn lit_scene(meshes: &[(Vec<[f32; 3]>, [f64; 3])], lights: &[(Value, Value)]) -> Value {
@@ -509,31 +299,6 @@ pub fn aim(d: [f64; 3]) -> [f64; 4] {
     let (x, y, z, w) = (d[1], -d[0], 0.0, 1.0 - d[2]);
     let n = (x * x + y * y + z * z + w * w).sqrt();
     [x / n, y / n, z / n, w / n]
-}
-
-/// Files under `dir` (recursively) whose extension, lower-cased, is one of `extensions`,
-/// sorted (for the corpus tests).
-pub fn files_with_extensions(dir: &Path, extensions: &[&str]) -> Vec<PathBuf> {
-    let mut found = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(dir) = stack.pop() {
-        let Ok(entries) = std::fs::read_dir(&dir) else {
-            continue;
-        };
-        for path in entries.flatten().map(|e| e.path()) {
-            if path.is_dir() {
-                stack.push(path);
-            } else if path
-                .extension()
-                .and_then(|e| e.to_str())
-                .is_some_and(|e| extensions.contains(&e.to_ascii_lowercase().as_str()))
-            {
-                found.push(path);
-            }
-        }
-    }
-    found.sort();
-    found
 }
 
 /// How a run under [`run_limited`] ended.

@@ -395,8 +395,7 @@ mod tests {
     /// the vertex positions differs).
     #[test]
     fn a_mesh_refined_everywhere_bakes_like_the_finer_grid() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/cube.gltf");
-        let scene = importer::load(std::path::Path::new(path)).expect("the cube");
+        let scene = importer::load(&bake_testkit::fixture("cube.gltf")).expect("the cube");
         let settings = |n| {
             let request = Request {
                 subdivision: Some(mesher::Subdivision::Count(n)),

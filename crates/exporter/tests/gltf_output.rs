@@ -4,7 +4,8 @@
 mod common;
 
 use bake_exporter::{write_gltf, Bake, ExportError, Shading};
-use common::{expected_smoothed, file_names, fixture, Fixture, BAKED_NODES};
+use bake_testkit::file_names;
+use common::{expected_smoothed, sample_bake, Fixture, BAKED_NODES};
 use glam::{DMat3, DMat4, DVec3};
 use gltf::json::validation::Checked;
 use gltf::mesh::Semantic;
@@ -40,7 +41,7 @@ fn write_and_import(dir: &Path, name: &str, bake: &Bake) -> Output {
 
 #[test]
 fn gltf_and_glb_hold_the_bake_smooth_and_flat() {
-    let fixture = fixture();
+    let fixture = sample_bake();
     for shading in [Shading::Smooth, Shading::Flat] {
         for name in ["baked.gltf", "baked.glb"] {
             let dir = tempfile::tempdir().expect("a temporary directory");
@@ -421,7 +422,7 @@ fn vec3(v: [f32; 3]) -> DVec3 {
 
 #[test]
 fn smoothed_centre_of_the_split_quad_is_the_mean_of_its_four_elements() {
-    let fixture = fixture();
+    let fixture = sample_bake();
     let dir = tempfile::tempdir().expect("a temporary directory");
     let output = write_and_import(dir.path(), "smooth.glb", &bake(&fixture, Shading::Smooth));
     // Quad A of node 1 is polygon 0: elements 0..4, vertex grid 0..9 with the centre at 4.
@@ -455,7 +456,7 @@ fn smoothed_centre_of_the_split_quad_is_the_mean_of_its_four_elements() {
 
 #[test]
 fn json_layout_views_are_aligned_and_targeted() {
-    let fixture = fixture();
+    let fixture = sample_bake();
     let dir = tempfile::tempdir().expect("a temporary directory");
     let path = dir.path().join("layout.gltf");
     write_gltf(&path, &bake(&fixture, Shading::Flat)).expect("write");
@@ -508,7 +509,7 @@ fn json_layout_views_are_aligned_and_targeted() {
 
 #[test]
 fn writing_again_replaces_the_output() {
-    let fixture = fixture();
+    let fixture = sample_bake();
     let dir = tempfile::tempdir().expect("a temporary directory");
     let path = dir.path().join("twice.gltf");
     write_gltf(&path, &bake(&fixture, Shading::Smooth)).expect("first write");
@@ -529,7 +530,7 @@ fn writing_again_replaces_the_output() {
 
 #[test]
 fn failing_writes_leave_nothing() {
-    let fixture = fixture();
+    let fixture = sample_bake();
     let dir = tempfile::tempdir().expect("a temporary directory");
     for name in ["missing/out.gltf", "missing/out.glb"] {
         let result = write_gltf(&dir.path().join(name), &bake(&fixture, Shading::Smooth));
@@ -569,7 +570,7 @@ fn failing_writes_leave_nothing() {
 
 #[test]
 fn nothing_baked_gives_nodes_without_meshes_or_buffers() {
-    let mut fixture = fixture();
+    let mut fixture = sample_bake();
     fixture.scene.polygons.clear();
     fixture.mesh = mesher::ElementMesh::default();
     fixture.radiosity.clear();
@@ -593,7 +594,7 @@ fn nothing_baked_gives_nodes_without_meshes_or_buffers() {
 /// elements around it (smooth), unclamped; without estimates there is no `_ERROR`.
 #[test]
 fn error_attribute_is_the_largest_estimate_around_each_vertex() {
-    let fixture = fixture();
+    let fixture = sample_bake();
     let n = fixture.mesh.elements.len();
     // Distinct per element and band, some above 1 (unclamped).
     let error: Vec<[f64; 3]> = (0..n)

@@ -6,7 +6,8 @@ mod common;
 
 use bake_exporter::report::{write_report, EnergyInfo, Report, SolverInfo, SolverMethod};
 use bake_exporter::{write_gltf, Bake, ExportError, Shading};
-use common::{file_names, fixture, Fixture};
+use bake_testkit::file_names;
+use common::{sample_bake, Fixture};
 use std::path::Path;
 
 fn bake<'a>(fixture: &'a Fixture, radiosity: &'a [[f64; 3]], shading: Shading) -> Bake<'a> {
@@ -35,7 +36,7 @@ const ELEMENT: usize = 8;
 
 #[test]
 fn infinite_or_nan_radiosity_is_refused_naming_the_element() {
-    let fixture = fixture();
+    let fixture = sample_bake();
     let dir = tempfile::tempdir().expect("a temporary directory");
     for (bad, shading, name) in [
         (f64::INFINITY, Shading::Flat, "out.glb"),
@@ -65,7 +66,7 @@ fn infinite_or_nan_radiosity_is_refused_naming_the_element() {
 #[test]
 fn radiosity_too_large_for_f32_is_refused_as_stored() {
     // Finite in f64, infinite as the f32 `_RADIOSITY` holds it (COLOR_0 clamps to 1).
-    let fixture = fixture();
+    let fixture = sample_bake();
     let mut radiosity = fixture.radiosity.clone();
     radiosity[ELEMENT][0] = 1e300;
     let dir = tempfile::tempdir().expect("a temporary directory");
@@ -83,7 +84,7 @@ fn radiosity_too_large_for_f32_is_refused_as_stored() {
 
 #[test]
 fn nan_vertex_position_is_refused_naming_the_element() {
-    let mut fixture = fixture();
+    let mut fixture = sample_bake();
     let corner = fixture.mesh.elements[ELEMENT].corner_indices()[0] as usize;
     fixture.mesh.vertices[corner].y = f64::NAN;
     let radiosity = fixture.radiosity.clone();
@@ -98,7 +99,7 @@ fn nan_vertex_position_is_refused_naming_the_element() {
 }
 
 fn report_with(radiosity: &[[f64; 3]]) -> Report {
-    let fixture = fixture();
+    let fixture = sample_bake();
     let solver = SolverInfo {
         method: SolverMethod::Direct,
         bounces: None,
@@ -120,7 +121,7 @@ fn report_with(radiosity: &[[f64; 3]]) -> Report {
 
 #[test]
 fn report_with_nan_is_refused_not_written_as_null() {
-    let fixture = fixture();
+    let fixture = sample_bake();
     let mut radiosity = fixture.radiosity.clone();
     radiosity[ELEMENT][1] = f64::NAN;
     let dir = tempfile::tempdir().expect("a temporary directory");

@@ -7,7 +7,8 @@ use bake_exporter::report::{
     SolverMethod,
 };
 use bake_exporter::ExportError;
-use common::{file_names, fixture};
+use bake_testkit::file_names;
+use common::sample_bake;
 use std::path::Path;
 
 fn solver() -> SolverInfo {
@@ -23,7 +24,7 @@ fn solver() -> SolverInfo {
 }
 
 fn report() -> Report {
-    let mut fixture = fixture();
+    let mut fixture = sample_bake();
     // Values whose shortest decimal form is long or extreme.
     fixture.radiosity[0] = [1.0 / 3.0, 1e-300, 123_456_789.123_456_78];
     fixture.radiosity[1] = [0.1 + 0.2, 5e-324, 2.0_f64.sqrt()];
@@ -52,7 +53,7 @@ fn report() -> Report {
 
 #[test]
 fn report_holds_the_scene_and_results() {
-    let fixture = fixture();
+    let fixture = sample_bake();
     let report = report();
     assert_eq!(report.schema_version, 6);
     assert_eq!(report.input, "scenes/cube.gltf");
@@ -174,7 +175,7 @@ fn report_round_trips_exactly_with_keys_in_field_order() {
 
 #[test]
 fn report_rejects_mismatched_radiosity_and_failed_writes_leave_nothing() {
-    let fixture = fixture();
+    let fixture = sample_bake();
     let result = Report::new(
         Path::new("x.gltf"),
         &fixture.scene,

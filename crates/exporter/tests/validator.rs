@@ -6,40 +6,19 @@
 mod common;
 
 use bake_exporter::{write_gltf, Bake, Shading};
-use common::fixture;
-use std::path::PathBuf;
-use std::process::Command;
-
-fn tools_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tools")
-}
-
-/// Whether `node` runs and the validator package is installed.
-fn validator_available() -> bool {
-    let installed = tools_dir()
-        .join(".validator/node_modules/gltf-validator/package.json")
-        .is_file();
-    let node_runs = Command::new("node")
-        .arg("--version")
-        .output()
-        .map(|output| output.status.success())
-        .unwrap_or(false);
-    installed && node_runs
-}
+use bake_testkit::{skip_unless_set, validator_available, validator_output};
+use common::sample_bake;
 
 #[test]
 fn outputs_validate_without_errors_or_warnings() {
     if !validator_available() {
-        let required = std::env::var("BAKE_REQUIRE_VALIDATOR").is_ok_and(|v| v == "1");
-        assert!(
-            !required,
-            "BAKE_REQUIRE_VALIDATOR=1 but the validator is not installed \
-             (run: bash tools/install-validator)"
+        skip_unless_set(
+            "BAKE_REQUIRE_VALIDATOR",
+            "the validator is not installed (run: bash tools/install-validator)",
         );
-        println!("skipped: validator not installed (run: bash tools/install-validator)");
         return;
     }
-    let fixture = fixture();
+    let fixture = sample_bake();
     let dir = tempfile::tempdir().expect("a temporary directory");
     let mut files = Vec::new();
     for (shading, tag) in [(Shading::Smooth, "smooth"), (Shading::Flat, "flat")] {
@@ -58,11 +37,7 @@ fn outputs_validate_without_errors_or_warnings() {
             files.push(path);
         }
     }
-    let output = Command::new("node")
-        .arg(tools_dir().join("validate.mjs"))
-        .args(&files)
-        .output()
-        .expect("run node tools/validate.mjs");
+    let output = validator_output(&files);
     let stdout = String::from_utf8_lossy(&output.stdout);
     let stderr = String::from_utf8_lossy(&output.stderr);
     println!("{stdout}{stderr}");

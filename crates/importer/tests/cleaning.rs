@@ -1,12 +1,10 @@
 //! Input cases that need a decision: duplicate coincident faces, winding that disagrees
 //! across shared edges, zero-filled accessors, and reading scenes from memory.
 
-mod common;
-
 use bake_importer::{
     load, load_bytes, load_obj_bytes, load_with, Format, ImportError, Options, Scene,
 };
-use common::GltfBuilder;
+use bake_testkit::GltfBuilder;
 use glam::DVec3;
 use serde_json::json;
 
@@ -340,7 +338,13 @@ fn a_scene_with_too_many_faces_in_all_instances_is_refused() {
     // nodes using the mesh make 5.6 million faces, more than the importer's 2^22.
     let mut b = GltfBuilder::new();
     let position = b.positions(&SQUARE);
-    let indices = b.accessor(&[], common::UNSIGNED_INT, "SCALAR", 1 << 20, json!({}));
+    let indices = b.accessor(
+        &[],
+        bake_testkit::UNSIGNED_INT,
+        "SCALAR",
+        1 << 20,
+        json!({}),
+    );
     b.root["accessors"][indices]
         .as_object_mut()
         .expect("object")

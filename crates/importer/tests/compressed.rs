@@ -4,19 +4,13 @@
 //! installed) load to the same polygons as the uncompressed files, within the quantisation
 //! step.
 
-mod common;
 mod draco_writer;
 
 use bake_importer::{load, Scene};
+use bake_testkit::{fixture, skip, tools_dir};
 use serde_json::{json, Value};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../fixtures")
-        .join(name)
-}
 
 /// Matches every polygon of `b` to a distinct polygon of `a` with an equal material (ρ and
 /// emission) and
@@ -149,17 +143,9 @@ fn gltfpack(input: &Path, output: &Path, args: &[&str]) -> bool {
         Ok(out) if out.status.success() => true,
         Ok(out) => panic!("gltfpack failed: {}", String::from_utf8_lossy(&out.stderr)),
         Err(e) => {
-            let required = ["BAKE_REQUIRE_GLTFPACK", "BAKE_REQUIRE_ALL"]
-                .iter()
-                .any(|v| std::env::var(v).is_ok_and(|x| x == "1"));
-            assert!(
-                !required,
-                "BAKE_REQUIRE_ALL=1 but gltfpack does not run: {e}"
-            );
-            use std::io::Write;
-            let _ = writeln!(
-                std::io::stderr(),
-                "skipped: gltfpack not found ({e}; tools/ci-clients installs it)"
+            skip(
+                "BAKE_REQUIRE_GLTFPACK",
+                &format!("gltfpack does not run ({e}; tools/ci-clients installs it)"),
             );
             false
         }
@@ -202,12 +188,12 @@ const UVS: [[f32; 2]; 4] = [[0.1, 0.2], [0.9, 0.2], [0.9, 0.7], [0.1, 0.7]];
 
 /// A textured unit square whose base colour texture carries `extension` (KTX2 or WebP image
 /// 1), with `fallback` a PNG `source` (image 0) or none; the extension is required.
-fn textured_square(extension: &str, fallback: bool) -> common::GltfBuilder {
-    let mut b = common::GltfBuilder::new();
+fn textured_square(extension: &str, fallback: bool) -> bake_testkit::GltfBuilder {
+    let mut b = bake_testkit::GltfBuilder::new();
     let square = [[0f32, 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]];
     let position = b.positions(&square);
     let uv: Vec<u8> = UVS.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
-    let uv = b.accessor(&uv, common::FLOAT, "VEC2", 4, json!({}));
+    let uv = b.accessor(&uv, bake_testkit::FLOAT, "VEC2", 4, json!({}));
     let indices = b.indices(&[0, 1, 2, 0, 2, 3]);
     let material = b.material(json!({
         "name": "Painted",
@@ -226,7 +212,7 @@ fn textured_square(extension: &str, fallback: bool) -> common::GltfBuilder {
     image::DynamicImage::ImageRgb8(image::RgbImage::from_pixel(2, 2, image::Rgb([200, 30, 30])))
         .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
         .unwrap();
-    let png = format!("data:image/png;base64,{}", common::base64(&png));
+    let png = format!("data:image/png;base64,{}", bake_testkit::base64(&png));
     b.root["images"] = json!([{ "uri": png }, { "uri": "data:image/ktx2;base64,AAAA" }]);
     let mut texture = json!({ "name": "Paint", "extensions": { extension: { "source": 1 } } });
     if fallback {
@@ -391,22 +377,14 @@ fn reference_encoder_draco_files_decode_to_the_uncompressed_polygons() {
     // Files from Google's encoder (draco3dgltf 1.5.7 through glTF-Transform, as
     // tools/install-draco-encoder installs): 14-bit positions, NORMAL as attribute 0 and
     // POSITION as attribute 1.
-    let tools = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools");
+    let tools = tools_dir();
     let installed = tools
         .join(".draco/node_modules/draco3dgltf/package.json")
         .is_file();
     if !installed {
-        let required = ["BAKE_REQUIRE_DRACO_ENCODER", "BAKE_REQUIRE_ALL"]
-            .iter()
-            .any(|v| std::env::var(v).is_ok_and(|x| x == "1"));
-        assert!(
-            !required,
-            "BAKE_REQUIRE_ALL=1 but tools/.draco is not installed"
-        );
-        use std::io::Write;
-        let _ = writeln!(
-            std::io::stderr(),
-            "skipped: the reference Draco encoder is not installed (tools/install-draco-encoder)"
+        skip(
+            "BAKE_REQUIRE_DRACO_ENCODER",
+            "the reference Draco encoder is not installed (tools/install-draco-encoder)",
         );
         return;
     }

@@ -1,10 +1,8 @@
 //! glTF import: scenes written programmatically, results checked against hand-computed
 //! numbers.
 
-mod common;
-
 use bake_importer::{load, ImportError, Polygon, Scene, Side, Transform};
-use common::GltfBuilder;
+use bake_testkit::GltfBuilder;
 use glam::{DMat4, DVec3};
 use serde_json::json;
 
@@ -514,7 +512,7 @@ fn float_indices_are_an_error_not_a_panic() {
         .iter()
         .flat_map(|f| f.to_le_bytes())
         .collect();
-    let indices = b.accessor(&bytes, common::FLOAT, "SCALAR", 3, json!({}));
+    let indices = b.accessor(&bytes, bake_testkit::FLOAT, "SCALAR", 3, json!({}));
     let mesh = b.mesh(
         "Tri",
         vec![json!({ "attributes": { "POSITION": position }, "indices": indices })],
@@ -534,7 +532,7 @@ fn normalized_integer_and_sparse_positions_are_read() {
         .collect();
     let quantized = b.accessor(
         &shorts,
-        common::UNSIGNED_SHORT,
+        bake_testkit::UNSIGNED_SHORT,
         "VEC3",
         3,
         json!({ "normalized": true, "min": [0, 0, 0], "max": [65535, 65535, 0] }),
@@ -554,11 +552,11 @@ fn normalized_integer_and_sparse_positions_are_read() {
     );
     let sparse = b.root["accessors"].as_array().unwrap().len();
     b.root["accessors"].as_array_mut().unwrap().push(json!({
-        "componentType": common::FLOAT, "type": "VEC3", "count": 3,
+        "componentType": bake_testkit::FLOAT, "type": "VEC3", "count": 3,
         "min": [0, 0, 0], "max": [2, 2, 0],
         "sparse": {
             "count": 2,
-            "indices": { "bufferView": sparse_indices, "componentType": common::UNSIGNED_SHORT },
+            "indices": { "bufferView": sparse_indices, "componentType": bake_testkit::UNSIGNED_SHORT },
             "values": { "bufferView": sparse_values }
         }
     }));

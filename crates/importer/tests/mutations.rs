@@ -1,9 +1,7 @@
 //! Robustness: deterministic mutations of valid glTF and OBJ scenes (every JSON number,
 //! GLB bytes, OBJ tokens) must load or fail with an error, never panic.
 
-mod common;
-
-use common::GltfBuilder;
+use bake_testkit::GltfBuilder;
 use serde_json::{json, Value};
 use std::path::Path;
 
@@ -42,7 +40,7 @@ fn rich_scene() -> GltfBuilder {
         .collect();
     let quantized = b.accessor(
         &shorts,
-        common::UNSIGNED_SHORT,
+        bake_testkit::UNSIGNED_SHORT,
         "VEC3",
         3,
         json!({ "normalized": true, "min": [0, 0, 0], "max": [65535, 65535, 0] }),
@@ -61,7 +59,7 @@ fn rich_scene() -> GltfBuilder {
     let base = b.positions(&[[0., 0., 1.], [0., 0., 1.], [0., 0., 1.]]);
     b.root["accessors"][base]["sparse"] = json!({
         "count": 2,
-        "indices": { "bufferView": sparse_indices, "componentType": common::UNSIGNED_SHORT },
+        "indices": { "bufferView": sparse_indices, "componentType": bake_testkit::UNSIGNED_SHORT },
         "values": { "bufferView": sparse_values }
     });
     let mesh = b.mesh(

@@ -8,10 +8,9 @@ use bake_visibility::{pair_seed, Occluders, Patch, DEFAULT_SAMPLES};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use mesher::{default_max_element_size, mesh, Subdivision};
 use rayon::prelude::*;
-use std::path::Path;
 
 fn cornell() -> Vec<importer::Polygon> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/cornell.gltf");
+    let path = bake_testkit::fixture("cornell.gltf");
     importer::load(&path)
         .expect("fixtures/cornell.gltf")
         .polygons

@@ -22,7 +22,7 @@ fn element(m: &ElementMesh, names: &[String], name: &str, at: DVec3) -> usize {
 
 #[test]
 fn room_b_sees_the_light_only_through_the_doorway() {
-    let scene = importer::load(&common::fixture("two-rooms.gltf")).unwrap();
+    let scene = importer::load(&bake_testkit::fixture("two-rooms.gltf")).unwrap();
     let names: Vec<String> = scene
         .polygons
         .iter()

@@ -36,7 +36,7 @@ pub struct Fixture {
     pub radiosity: Vec<[f64; 3]>,
 }
 
-pub fn fixture() -> Fixture {
+pub fn sample_bake() -> Fixture {
     let layout = layout();
     let mut polygons = Vec::new();
     for node in BAKED_NODES {
@@ -338,20 +338,4 @@ pub fn expected_smoothed(mesh: &ElementMesh, values: &[[f64; 3]]) -> Vec<[f64; 3
             (sum / weight).to_array()
         })
         .collect()
-}
-
-/// Files in `dir`, sorted.
-pub fn file_names(dir: &std::path::Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .expect("read the test directory")
-        .map(|entry| {
-            entry
-                .expect("a directory entry")
-                .file_name()
-                .to_string_lossy()
-                .into_owned()
-        })
-        .collect();
-    names.sort();
-    names
 }

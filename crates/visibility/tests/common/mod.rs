@@ -1,9 +1,9 @@
 //! Scenes shared by the visibility tests.
 #![allow(dead_code)]
 
+use bake_testkit::fixture;
 use glam::DVec3;
 use importer::{Origin, Polygon, Side};
-use std::path::PathBuf;
 
 /// A polygon from counter-clockwise corners (normal from the first three).
 pub fn polygon(corners: &[DVec3], index: usize) -> Polygon {
@@ -45,13 +45,6 @@ pub fn cube() -> Vec<Polygon> {
         .enumerate()
         .map(|(k, c)| polygon(c, k))
         .collect()
-}
-
-/// `fixtures/NAME` at the workspace root.
-pub fn fixture(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../fixtures")
-        .join(name)
 }
 
 /// The Cornell box fixture, and the mesh name of every polygon.

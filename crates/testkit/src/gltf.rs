@@ -1,14 +1,43 @@
 //! A minimal glTF 2.0 writer for tests: one binary buffer, written as a data URI, an
 //! external `.bin`, or a `.glb` container.
-#![allow(dead_code)]
 
+use crate::encode::{data_uri, glb, GLB_BIN, GLB_JSON};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
+/// Accessor component types.
 pub const FLOAT: u32 = 5126;
 pub const UNSIGNED_SHORT: u32 = 5123;
 pub const UNSIGNED_INT: u32 = 5125;
 
+/// Primitive modes.
+pub const POINTS: u32 = 0;
+pub const TRIANGLES: u32 = 4;
+
+/// Little-endian f32 bytes of the positions.
+pub fn position_bytes(positions: &[[f32; 3]]) -> Vec<u8> {
+    positions
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect()
+}
+
+/// Component-wise min and max over the finite values (glTF requires POSITION bounds; a NaN
+/// cannot be written in JSON, so the bounds of a poisoned buffer leave it out).
+fn finite_bounds(positions: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
+    let mut min = [0.0f32; 3];
+    let mut max = [0.0f32; 3];
+    for axis in 0..3 {
+        let finite = positions.iter().map(|p| p[axis]).filter(|v| v.is_finite());
+        min[axis] = finite.clone().fold(f32::INFINITY, f32::min);
+        max[axis] = finite.fold(f32::NEG_INFINITY, f32::max);
+    }
+    (min, max)
+}
+
+/// A glTF document under construction: `root` is its JSON without `buffers`, `bin` the one
+/// buffer's bytes. Empty top-level arrays are left out when it is written.
 pub struct GltfBuilder {
     pub root: Value,
     pub bin: Vec<u8>,
@@ -30,6 +59,20 @@ impl GltfBuilder {
             }),
             bin: Vec::new(),
         }
+    }
+
+    /// A one-mesh document: scene 0 holds node "wall" → mesh "wall", one non-indexed
+    /// primitive of `mode` ([`TRIANGLES`], [`POINTS`], …) over `positions`; with `material`,
+    /// that is material 0 and the primitive uses it.
+    pub fn wall(positions: &[[f32; 3]], mode: u32, material: Option<Value>) -> Self {
+        let mut b = Self::new();
+        let material = material.map(|m| b.material(m));
+        let primitive = b.primitive(positions, None, material, mode);
+        let mesh = b.mesh("wall", vec![primitive]);
+        let node = b.node(json!({ "name": "wall", "mesh": mesh }));
+        let scene = b.scene(&[node]);
+        b.root["scene"] = json!(scene);
+        b
     }
 
     fn push(&mut self, key: &str, value: Value) -> usize {
@@ -73,23 +116,11 @@ impl GltfBuilder {
     }
 
     /// A float VEC3 POSITION accessor with the min/max the spec requires (over the finite
-    /// points: JSON has no NaN).
+    /// values: JSON has no NaN).
     pub fn positions(&mut self, points: &[[f32; 3]]) -> usize {
-        let bytes: Vec<u8> = points
-            .iter()
-            .flatten()
-            .flat_map(|f| f.to_le_bytes())
-            .collect();
-        let mut min = [f32::INFINITY; 3];
-        let mut max = [f32::NEG_INFINITY; 3];
-        for p in points.iter().filter(|p| p.iter().all(|f| f.is_finite())) {
-            for k in 0..3 {
-                min[k] = min[k].min(p[k]);
-                max[k] = max[k].max(p[k]);
-            }
-        }
+        let (min, max) = finite_bounds(points);
         self.accessor(
-            &bytes,
+            &position_bytes(points),
             FLOAT,
             "VEC3",
             points.len(),
@@ -119,7 +150,7 @@ impl GltfBuilder {
         indices: Option<&[u16]>,
         material: Option<usize>,
     ) -> usize {
-        let primitive = self.primitive(points, indices, material, 4);
+        let primitive = self.primitive(points, indices, material, TRIANGLES);
         self.mesh(name, vec![primitive])
     }
 
@@ -150,7 +181,8 @@ impl GltfBuilder {
         self.push("scenes", json!({ "nodes": nodes }))
     }
 
-    fn root_with_buffer(&self, uri: Option<String>) -> Value {
+    /// The document with the buffer at `uri` (none: the GLB's BIN chunk).
+    fn root_with_buffer(&self, uri: Option<&str>) -> Value {
         let mut root = self.root.clone();
         let mut buffer = json!({ "byteLength": self.bin.len() });
         if let Some(uri) = uri {
@@ -164,10 +196,19 @@ impl GltfBuilder {
         root
     }
 
+    /// The document, with the buffer stored at `uri`.
+    pub fn json_with_buffer_uri(&self, uri: &str) -> Value {
+        self.root_with_buffer(Some(uri))
+    }
+
+    /// The document with its buffer embedded as a base64 data URI.
+    pub fn json(&self) -> Value {
+        self.json_with_buffer_uri(&data_uri(&self.bin))
+    }
+
     /// `.gltf` with the buffer as a base64 data URI.
     pub fn write_embedded(&self, path: &Path) -> PathBuf {
-        let uri = format!("data:application/octet-stream;base64,{}", base64(&self.bin));
-        let text = serde_json::to_string_pretty(&self.root_with_buffer(Some(uri))).expect("json");
+        let text = serde_json::to_string_pretty(&self.json()).expect("json");
         std::fs::write(path, text).expect("write gltf");
         path.to_owned()
     }
@@ -180,55 +221,15 @@ impl GltfBuilder {
         );
         std::fs::write(path.with_file_name(&bin_name), &self.bin).expect("write bin");
         let text =
-            serde_json::to_string_pretty(&self.root_with_buffer(Some(bin_name))).expect("json");
+            serde_json::to_string_pretty(&self.json_with_buffer_uri(&bin_name)).expect("json");
         std::fs::write(path, text).expect("write gltf");
         path.to_owned()
     }
 
-    /// `.glb`: 12-byte header, JSON chunk padded with spaces, BIN chunk padded with zeros.
+    /// `.glb`: the JSON chunk and the BIN chunk (written even when the buffer is empty).
     pub fn write_glb(&self, path: &Path) -> PathBuf {
-        let mut json = serde_json::to_vec(&self.root_with_buffer(None)).expect("json");
-        while json.len() % 4 != 0 {
-            json.push(b' ');
-        }
-        let mut bin = self.bin.clone();
-        while bin.len() % 4 != 0 {
-            bin.push(0);
-        }
-        let total = 12 + 8 + json.len() + 8 + bin.len();
-        let mut out = Vec::with_capacity(total);
-        out.extend_from_slice(b"glTF");
-        out.extend_from_slice(&2u32.to_le_bytes());
-        out.extend_from_slice(&(total as u32).to_le_bytes());
-        out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-        out.extend_from_slice(&0x4E4F_534Au32.to_le_bytes());
-        out.extend_from_slice(&json);
-        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-        out.extend_from_slice(&0x004E_4942u32.to_le_bytes());
-        out.extend_from_slice(&bin);
-        std::fs::write(path, out).expect("write glb");
+        let json = serde_json::to_vec(&self.root_with_buffer(None)).expect("json");
+        std::fs::write(path, glb(&[(GLB_JSON, &json), (GLB_BIN, &self.bin)])).expect("write glb");
         path.to_owned()
     }
-}
-
-/// Standard base64 with padding (RFC 4648 §4).
-pub fn base64(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::new();
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
-        for k in 0..4 {
-            if k <= chunk.len() {
-                out.push(ALPHABET[(n >> (18 - 6 * k)) as usize & 63] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
 }
