@@ -525,19 +525,27 @@ impl SavedLinks {
     }
 }
 
+/// The version of [`links_key`]'s layout. 2: the options are hashed field by field
+/// (version 1 hashed their `Debug` text, which moved whenever a type did); links saved under
+/// version 1 are refused as made with other options, and must be saved again.
+pub const LINKS_KEY_VERSION: u8 = 2;
+
 /// What the links of a bake depend on: the polygons (vertices and normals, bit for bit), the
-/// element mesh and the options that shape linking. Not ρ or e: a re-bake with other
-/// emission or colours may reuse them (refinement followed the radiosities of the bake that
-/// saved them). FNV-1a over the bytes, stable across runs and platforms.
+/// element mesh and the options that shape linking (subdivision, estimator, contour options,
+/// link tolerance, shadow rays per link, linking passes), each as explicit bytes. Not ρ or e:
+/// a re-bake with other emission or colours may reuse them (refinement followed the
+/// radiosities of the bake that saved them). FNV-1a over the bytes, stable across runs and
+/// platforms.
 pub fn links_key(scene: &Scene, mesh: &ElementMesh, settings: &Settings) -> u64 {
-    let mut hash = 0xcbf2_9ce4_8422_2325u64;
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
     let mut eat = |bytes: &[u8]| {
         for &b in bytes {
             hash ^= u64::from(b);
             hash = hash.wrapping_mul(0x0100_0000_01b3);
         }
     };
-    eat(b"bake links 1");
+    eat(b"bake links");
+    eat(&[LINKS_KEY_VERSION]);
     eat(&(scene.polygons.len() as u64).to_le_bytes());
     for p in &scene.polygons {
         eat(&(p.vertices.len() as u64).to_le_bytes());
@@ -548,16 +556,40 @@ pub fn links_key(scene: &Scene, mesh: &ElementMesh, settings: &Settings) -> u64 
         }
     }
     eat(&(mesh.elements.len() as u64).to_le_bytes());
-    let options = format!(
-        "{:?} {:?} {:?} {} {} {}",
-        settings.subdivision,
-        settings.estimator,
-        settings.contour,
-        settings.link_tolerance.to_bits(),
-        settings.link_samples,
-        LINK_PASSES
-    );
-    eat(options.as_bytes());
+    match settings.subdivision {
+        mesher::Subdivision::Count(n) => {
+            eat(&[0]);
+            eat(&n.to_le_bytes());
+        }
+        mesher::Subdivision::MaxSize(l) => {
+            eat(&[1]);
+            eat(&l.to_bits().to_le_bytes());
+        }
+    }
+    match settings.estimator {
+        Estimator::Contour => eat(&[0]),
+        Estimator::PointPolygon(rule) => eat(&[
+            1,
+            match rule {
+                form_factor::TriangleRule::Centroid => 0,
+                form_factor::TriangleRule::Three => 1,
+                form_factor::TriangleRule::Seven => 2,
+            },
+        ]),
+        Estimator::PointPoint => eat(&[2]),
+        Estimator::Auto { tolerance } => {
+            eat(&[3]);
+            eat(&tolerance.to_bits().to_le_bytes());
+        }
+    }
+    let c = settings.contour;
+    eat(&c.segments.to_le_bytes());
+    eat(&c.order.to_le_bytes());
+    eat(&c.near_ratio.to_bits().to_le_bytes());
+    eat(&[u8::from(c.auto_order)]);
+    eat(&settings.link_tolerance.to_bits().to_le_bytes());
+    eat(&settings.link_samples.to_le_bytes());
+    eat(&LINK_PASSES.to_le_bytes());
     hash
 }
 
@@ -1121,4 +1153,79 @@ pub fn element_values(scene: &Scene, mesh: &ElementMesh) -> (Vec<[f64; BANDS]>, 
             (rho, textured(m.emission, &m.emissive_texture))
         })
         .unzip()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Saved links are refused unless every option that shapes them is the same: the key
+    /// changes with each one (and not with ρ, e or the solver).
+    #[test]
+    fn the_links_key_changes_with_every_option_that_shapes_links() {
+        let scene = importer::load(&bake_testkit::fixture("cube.gltf")).expect("the cube");
+        let key = |request: Request| {
+            let settings = Settings::resolve(&request, &scene.polygons).expect("settings");
+            let mesh = mesher::mesh(&scene.polygons, settings.subdivision).expect("mesh");
+            links_key(&scene, &mesh, &settings)
+        };
+        let base = Request {
+            subdivision: Some(mesher::Subdivision::Count(4)),
+            ..Request::default()
+        };
+        let same = key(base.clone());
+        assert_eq!(same, key(base.clone()), "the key is deterministic");
+        assert_eq!(
+            same,
+            key(Request {
+                solver: Some(SolverKind::Iterative),
+                max_reflectance: Some(0.5),
+                ..base.clone()
+            }),
+            "the solver and reflectances do not shape links"
+        );
+        let mut contour = base.contour;
+        contour.segments += 1;
+        let changed = [
+            Request {
+                subdivision: Some(mesher::Subdivision::Count(5)),
+                ..base.clone()
+            },
+            Request {
+                subdivision: Some(mesher::Subdivision::MaxSize(0.25)),
+                ..base.clone()
+            },
+            Request {
+                ff_estimator: Some(EstimatorKind::Contour),
+                ..base.clone()
+            },
+            Request {
+                ff_estimator: Some(EstimatorKind::PointPoint),
+                ..base.clone()
+            },
+            Request {
+                ff_tolerance: Some(2e-3),
+                ..base.clone()
+            },
+            Request {
+                contour,
+                ..base.clone()
+            },
+            Request {
+                link_tolerance: Some(0.0123),
+                ..base.clone()
+            },
+            Request {
+                visibility_samples: Some(49),
+                ..base.clone()
+            },
+        ];
+        let keys: Vec<u64> = changed.into_iter().map(key).collect();
+        for (k, &changed) in keys.iter().enumerate() {
+            assert_ne!(changed, same, "option change {k} kept the key");
+            for &other in &keys[..k] {
+                assert_ne!(changed, other, "option changes {k} and another share a key");
+            }
+        }
+    }
 }
