@@ -387,6 +387,7 @@ impl Cli {
             refine: self.refine.map(|r| r == OnOff::On),
             max_elements: self.max_elements,
             max_reflectance: Some(self.max_reflectance),
+            refine_levels: None,
         };
         Job {
             input: self.input.clone(),

@@ -113,6 +113,9 @@ pub struct Request {
     /// `--max-reflectance`: reflectances at or above 1 are lowered to this
     /// ([`DEFAULT_MAX_REFLECTANCE`] when `None`).
     pub max_reflectance: Option<f64>,
+    /// Most levels refinement splits below the grid (`None`: [`crate::refine::MAX_LEVELS`]);
+    /// for measurements against a reference whose own elements are that fine.
+    pub refine_levels: Option<u8>,
 }
 
 /// The reflectance a ρ ≥ 1 (glTF's default material, a white texture on a white factor) is
@@ -146,6 +149,7 @@ impl Default for Request {
             refine: None,
             max_elements: None,
             max_reflectance: None,
+            refine_levels: None,
         }
     }
 }
@@ -158,57 +162,57 @@ pub const HIERARCHICAL_SOLVE_TOLERANCE: f64 = 1e-6;
 /// Everything one bake runs with, resolved from a [`Request`] and its preset.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Settings {
-    pub quality: Quality,
-    pub subdivision: Subdivision,
-    pub contour: ContourOptions,
+    pub(crate) quality: Quality,
+    pub(crate) subdivision: Subdivision,
+    pub(crate) contour: ContourOptions,
     /// The estimator as given or preset; under the dense transport, when
     /// [`Settings::derive_tolerance`], `auto`'s tolerance comes from `max_error` instead
     /// ([`Settings::dense_estimator`]).
-    pub estimator: Estimator,
+    pub(crate) estimator: Estimator,
     /// Target relative error of `b` (`--max-error` or the preset's).
-    pub max_error: f64,
+    pub(crate) max_error: f64,
     /// Whether the dense transport derives `auto`'s per-pair tolerance from `max_error` and
     /// the scene's largest reflectance: no `--ff-tolerance` and no estimator other than `auto`.
-    pub derive_tolerance: bool,
+    pub(crate) derive_tolerance: bool,
     /// Shadow rays per occludable element pair (dense transport).
-    pub visibility_samples: u32,
+    pub(crate) visibility_samples: u32,
     /// The transport asked for (`Auto` is decided per scene by [`crate::run`]).
-    pub transport: TransportKind,
+    pub(crate) transport: TransportKind,
     /// Solve for the dense transport.
-    pub dense_solve: Solve,
+    pub(crate) dense_solve: Solve,
     /// Solve for the hierarchical transport (never `Direct`).
-    pub hierarchical_solve: Solve,
+    pub(crate) hierarchical_solve: Solve,
     /// Whether `--solver direct` was given (then `auto` keeps the dense transport).
-    pub direct_requested: bool,
+    pub(crate) direct_requested: bool,
     /// Largest estimated error of a link's contribution to its receiver's radiosity, relative
     /// to the scene's mean radiosity.
-    pub link_tolerance: f64,
+    pub(crate) link_tolerance: f64,
     /// Shadow rays per occludable link.
-    pub link_samples: u32,
+    pub(crate) link_samples: u32,
     /// Shadow rays per element a polygon may shadow from a point or spot light.
-    pub light_samples: u32,
-    pub irradiance: bool,
+    pub(crate) light_samples: u32,
+    pub(crate) irradiance: bool,
     /// `--save-links` / `--load-links` (either makes the transport hierarchical).
-    pub save_links: bool,
-    pub load_links: Option<std::path::PathBuf>,
+    pub(crate) save_links: bool,
+    pub(crate) load_links: Option<std::path::PathBuf>,
     /// Refine where the light changes ([`crate::refine`]).
-    pub refine: bool,
+    pub(crate) refine: bool,
     /// Whether `--refine on` was given (then a bake that cannot refine says why).
-    pub refine_requested: bool,
+    pub(crate) refine_requested: bool,
     /// Whether the user asked for a target (`--max-error`, `--max-elements` or `--refine on`):
     /// then refinement that stops short of it warns. Otherwise (the preset's defaults) the
     /// report's `refinement` says where it stopped and the bake stays quiet.
-    pub warn_refinement: bool,
+    pub(crate) warn_refinement: bool,
     /// `--max-elements`: refinement stops before the mesh passes this many elements (`None`:
     /// [`Settings::element_budget`]'s default).
-    pub max_elements: Option<u64>,
+    pub(crate) max_elements: Option<u64>,
     /// Elements are split at most this many times below the grid
     /// ([`crate::refine::MAX_LEVELS`]; `tools/accuracy-report` lowers it so that its
     /// reference mesh resolves every refined element).
-    pub refine_levels: u8,
+    pub(crate) refine_levels: u8,
     /// Element reflectances at or above 1 are lowered to this (`--max-reflectance`, in
     /// (0, 1]; 1 keeps them, and the solver then refuses a closed scene with an emitter).
-    pub max_reflectance: f64,
+    pub(crate) max_reflectance: f64,
 }
 
 impl Settings {
@@ -283,7 +287,7 @@ impl Settings {
                 || request.max_error.is_some()
                 || request.max_elements.is_some(),
             max_elements: request.max_elements,
-            refine_levels: crate::refine::MAX_LEVELS,
+            refine_levels: request.refine_levels.unwrap_or(crate::refine::MAX_LEVELS),
             max_reflectance: request.max_reflectance.unwrap_or(DEFAULT_MAX_REFLECTANCE),
         })
     }
@@ -379,6 +383,7 @@ fn estimator(request: &Request, preset: Estimator) -> Estimator {
         ),
     }
 }
+
 /// The combinations and values of a request no parser checks.
 fn check(request: &Request) -> Result<(), BakeError> {
     if request.transport == TransportKind::Hierarchical

@@ -111,35 +111,43 @@ pub fn bake(scene: &Scene, setting: &Setting) -> Result<Run> {
     best.ok_or_else(|| anyhow!("no run"))
 }
 
-pub fn bake_once(scene: &Scene, setting: &Setting) -> Result<Run> {
-    let base = peak::reset();
-    let start = Instant::now();
-    // The library's one bake with this setting's knobs, on the dense transport the sweep
-    // measures.
-    let request = bake_core::Request {
+/// The library's one bake with this setting's knobs, on the dense transport the sweep
+/// measures: each estimator and tolerance as given, except a preset's (`max_error`), whose
+/// tolerance `--max-error` derives, as `--quality` does.
+fn request(setting: &Setting) -> bake_core::Request {
+    use bake_core::EstimatorKind;
+    let (ff_estimator, ff_tolerance, ff_points) = match setting.estimator {
+        Estimator::Contour => (EstimatorKind::Contour, None, None),
+        Estimator::PointPolygon(rule) => (EstimatorKind::PointPolygon, None, Some(rule.points())),
+        Estimator::PointPoint => (EstimatorKind::PointPoint, None, None),
+        Estimator::Auto { .. } if setting.max_error.is_some() => (EstimatorKind::Auto, None, None),
+        Estimator::Auto { tolerance } => (EstimatorKind::Auto, Some(tolerance), None),
+    };
+    let default = bake_core::Request::default();
+    bake_core::Request {
         subdivision: Some(setting.subdivision),
         transport: bake_core::TransportKind::Dense,
         refine: Some(setting.refine.is_some()),
         max_elements: setting.refine,
-        ..bake_core::Request::default()
-    };
-    let mut settings = bake_core::Settings::resolve(&request, &scene.polygons)?;
-    settings.estimator = setting.estimator;
-    // The sweep measures each estimator and tolerance as given, except a preset's, whose
-    // tolerance --max-error derives.
-    settings.derive_tolerance = setting.max_error.is_some();
-    if let Some(e) = setting.max_error {
-        settings.max_error = e;
+        refine_levels: setting.refine_levels,
+        ff_estimator: Some(ff_estimator),
+        ff_tolerance,
+        ff_points: ff_points.unwrap_or(default.ff_points),
+        max_error: setting.max_error,
+        contour: setting.contour,
+        visibility_samples: Some(setting.samples),
+        bounces: match setting.solve {
+            Solve::Direct => None,
+            Solve::Bounces(k) => Some(k),
+        },
+        ..default
     }
-    settings.contour = setting.contour;
-    if let Some(levels) = setting.refine_levels {
-        settings.refine_levels = levels;
-    }
-    settings.visibility_samples = setting.samples;
-    settings.dense_solve = match setting.solve {
-        Solve::Direct => bake_core::Solve::Direct,
-        Solve::Bounces(k) => bake_core::Solve::Bounces(k),
-    };
+}
+
+pub fn bake_once(scene: &Scene, setting: &Setting) -> Result<Run> {
+    let base = peak::reset();
+    let start = Instant::now();
+    let settings = bake_core::Settings::resolve(&request(setting), &scene.polygons)?;
     let bake = bake_core::run(&scene.source, &settings, &bake_core::Silent)?;
     let time_s = start.elapsed().as_secs_f64();
     let stage = |name: &str| {
