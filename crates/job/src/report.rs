@@ -82,14 +82,13 @@ impl Baked<'_> {
             warnings.push(line);
         }
         report.keep_elements(which);
-        let errors: Vec<[f64; 3]> = bake.error.iter().map(|p| p.total()).collect();
         for (i, entry) in report.elements.iter_mut().enumerate() {
             // ρ and e as the bake used them (textures averaged over the element).
             entry.rho = bake.rho[i];
             entry.e = bake.emission[i];
             entry.direct = bake.direct[i];
             entry.h = bake.irradiance.as_ref().map(|h| h[i]);
-            entry.error = errors.get(i).copied();
+            entry.error = bake.error.get(i).map(|p| p.total());
         }
         report.lights = light_entries(scene, bake);
         self.fill_counts(&mut report);
