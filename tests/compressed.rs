@@ -9,9 +9,9 @@ mod common;
 #[path = "../crates/importer/tests/draco_writer/mod.rs"]
 mod draco_writer;
 
+use bake_job::report::{read_report, Report};
 use bake_testkit::{fixture, skip, validate_clean};
 use common::bake;
-use exporter::report::{read_report, Report};
 use std::path::Path;
 use std::process::Command;
 

@@ -57,7 +57,10 @@ fn differences(dense: &Bake, other: &Bake) -> (f64, f64) {
 fn compare(name: &str, size: f64) {
     let dense = run(name, size, TransportKind::Dense, None);
     let hierarchical = run(name, size, TransportKind::Hierarchical, Some(1e-3));
-    assert_eq!(hierarchical.transport.kind, TransportKind::Hierarchical);
+    assert_eq!(
+        hierarchical.plan.transport().kind,
+        TransportKind::Hierarchical
+    );
     assert!(hierarchical.counts.links > 0);
     let (rms, worst) = differences(&dense, &hierarchical);
     println!(
@@ -143,14 +146,14 @@ fn hierarchical_bakes_are_bit_identical_with_one_and_two_threads() {
 #[test]
 fn auto_picks_the_transport_by_element_count_and_says_why() {
     let small = run("cornell.gltf", 60.0, TransportKind::Auto, None);
-    assert_eq!(small.transport.kind, TransportKind::Dense);
-    assert!(small.transport.reason.contains("crossover"));
+    assert_eq!(small.plan.transport().kind, TransportKind::Dense);
+    assert!(small.plan.transport().reason.contains("crossover"));
     let n = small.mesh.elements.len();
     assert!(n <= bake_core::DENSE_CROSSOVER, "{n}");
     let large = run("cornell.gltf", 25.0, TransportKind::Auto, None);
     assert!(large.mesh.elements.len() > bake_core::DENSE_CROSSOVER);
-    assert_eq!(large.transport.kind, TransportKind::Hierarchical);
-    assert!(large.transport.reason.contains("crossover"));
+    assert_eq!(large.plan.transport().kind, TransportKind::Hierarchical);
+    assert!(large.plan.transport().reason.contains("crossover"));
 }
 
 #[test]
@@ -282,7 +285,11 @@ fn every_phase_of_a_hierarchical_bake_reports_progress() {
         .iter()
         .filter(|s| s.0.starts_with("links pass"))
         .collect();
-    assert_eq!(passes.len() as u32 + 1, baked.counts.passes, "{names:?}");
+    assert_eq!(
+        passes.len() as u32 + 1,
+        baked.counts.refinement_passes,
+        "{names:?}"
+    );
     for (k, pass) in passes.iter().enumerate() {
         assert_eq!(pass.0, format!("links pass {}", k + 2));
         assert!(pass.1 > 0 && pass.2 == pass.1, "{pass:?}");
@@ -324,9 +331,9 @@ fn a_scene_without_light_builds_no_transport() {
         assert_eq!(baked.counts.pairs_evaluated, 0);
         assert_eq!(baked.counts.rays_cast, 0);
         assert!(
-            baked.transport.reason.contains("not built"),
+            baked.plan.transport().reason.contains("not built"),
             "{}",
-            baked.transport.reason
+            baked.plan.transport().reason
         );
         assert_eq!(baked.energy.imbalance, [0.0; 3]);
         assert!(baked

@@ -9,9 +9,9 @@
 
 mod common;
 
+use bake_job::report::{ElementEntry, Report};
 use bake_testkit::{blender_or_skip, tools_dir, validator_or_skip, validator_output};
 use common::{aim, bake, bake_json, lit_scene as scene, write_json};
-use exporter::report::{ElementEntry, Report};
 use serde_json::{json, Value};
 use std::f64::consts::PI;
 use std::path::Path;
@@ -103,7 +103,7 @@ fn point_light_over_a_floor_matches_the_solid_angle_closed_form() {
     assert_eq!(report.lights.len(), 1);
     assert_eq!(report.lights[0].kind, "point");
     assert_eq!(
-        report.lights[0].rays_cast, 0,
+        report.lights[0].stats.rays_cast, 0,
         "nothing can shadow a lone floor"
     );
     let energy = report.energy.as_ref().expect("energy");
@@ -219,9 +219,9 @@ fn sun_shadow_of_a_black_square_is_its_exact_lit_share() {
         dark > 10 && partial > 10 && lit > 100,
         "{dark} {partial} {lit}"
     );
-    assert!(report.lights[0].elements_clipped > 0);
+    assert!(report.lights[0].stats.elements_clipped > 0);
     assert_eq!(
-        report.lights[0].rays_cast, 0,
+        report.lights[0].stats.rays_cast, 0,
         "directional shadows are clipped, not sampled"
     );
 }
@@ -358,7 +358,7 @@ fn blender_room_with_point_and_spot_lights_bakes() {
     ])
     .success();
     assert!(run.stderr.contains("exposure auto"), "{}", run.stderr);
-    let report = exporter::report::read_report(&report_path).expect("the report");
+    let report = bake_job::report::read_report(&report_path).expect("the report");
     let kinds: Vec<&str> = report.lights.iter().map(|l| l.kind.as_str()).collect();
     assert_eq!(kinds, ["point", "spot"]);
     let floor = report
@@ -517,7 +517,7 @@ fn shadowed_lights_give_the_same_bytes_for_one_and_two_threads() {
         outputs.push((std::fs::read(&out).expect("read the bake"), report));
     }
     assert!(
-        outputs[0].1.lights.iter().all(|l| l.rays_cast > 0),
+        outputs[0].1.lights.iter().all(|l| l.stats.rays_cast > 0),
         "rays were cast"
     );
     assert_eq!(outputs[0].0, outputs[1].0, "same bytes");

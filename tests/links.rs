@@ -75,7 +75,7 @@ fn a_rebake_from_saved_links_matches_a_fresh_bake_of_the_new_emission() {
         &[os("--transport"), os("hierarchical")],
         &d.join("fresh.json"),
     );
-    assert_eq!(reused.transport.kind, "hierarchical");
+    assert_eq!(reused.transport.kind.name(), "hierarchical");
     assert!(reused.transport.reason.contains("links loaded from"));
     assert_eq!(reused.counts.rays_cast, 0, "nothing linked, no rays");
     assert!(reused.counts.links > 0);

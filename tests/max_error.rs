@@ -8,9 +8,9 @@
 
 mod common;
 
+use bake_job::report::{read_report, Report};
 use bake_testkit::{GltfBuilder, TRIANGLES};
 use common::{bake, write_json};
-use exporter::report::{read_report, Report};
 use serde_json::{json, Value};
 use std::path::Path;
 
@@ -96,7 +96,7 @@ fn bright_closed_boxes_bake_within_the_target() {
             assert_eq!(accuracy.max_error, max_error);
             assert_eq!(report.options["max_error"], max_error);
             assert_eq!(report.options["ff_tolerance_from_max_error"], true);
-            assert_eq!(report.transport.kind, "dense");
+            assert_eq!(report.transport.kind.name(), "dense");
             assert_eq!(accuracy.rho_max, f64::from(rho));
             assert_eq!(
                 tau,
@@ -143,7 +143,8 @@ fn a_bright_cube_at_high_quality_stays_dense_and_within_the_target() {
     let report = report.unwrap_or_else(|| panic!("{out:#?}"));
     assert_eq!(report.elements.len(), 2166);
     assert_eq!(
-        report.transport.kind, "dense",
+        report.transport.kind.name(),
+        "dense",
         "{}",
         report.transport.reason
     );
@@ -179,7 +180,7 @@ fn the_tolerance_tightens_with_the_reflectance() {
         let dir = tempfile::tempdir().expect("tempdir");
         let (out, report) = run(dir.path(), &box_gltf(Some(rho)), &["--subdiv", "2"]);
         let report = report.unwrap_or_else(|| panic!("ρ = {rho}: {out:#?}"));
-        let accuracy = report.accuracy.clone().expect("accuracy");
+        let accuracy = report.accuracy.expect("accuracy");
         let tau = accuracy.ff_tolerance.expect("chosen");
         let after = accuracy.error_bound[0].expect("solved");
         let error = furnace_error(&report, rho);

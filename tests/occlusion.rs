@@ -5,11 +5,12 @@
 
 mod common;
 
+use bake_job::report::{ElementEntry, Report};
 use bake_testkit::fixture;
 use common::{bake, report_without_timings};
-use exporter::report::{ElementEntry, Report};
-use form_factor::{ContourOptions, FormFactors, Occluders, Occlusion};
+use form_factor::{ContourOptions, FormFactors, Occlusion};
 use mesher::{mesh, Subdivision};
+use visibility::Occluders;
 
 /// Bakes `input` with `args` and returns its report.
 fn report(input: &str, args: &[&str]) -> Report {
@@ -65,7 +66,7 @@ fn the_cube_casts_no_ray_and_keeps_its_exact_form_factors() {
 
     let r = report("cube.gltf", &["--subdiv", "5"]);
     assert_eq!((r.counts.rays_cast, r.counts.pairs_occludable), (0, 0));
-    assert!(!r.effects.occlusion, "{}", r.effects.occlusion_reason);
+    assert!(!r.effects.occlusion, "{}", r.effects.reason);
 }
 
 /// Is the floor point (x, z) inside the convex footprint `quad` (x, z corners, any winding)?

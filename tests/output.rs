@@ -8,9 +8,9 @@
 
 mod common;
 
+use bake_job::report::{ElementEntry, Report};
 use bake_testkit::{file_names, fixture, validator_or_skip, validator_output};
 use common::{bake, bake_in, report_without_timings, CUBE_WALLS};
-use exporter::report::{ElementEntry, Report};
 use gltf::mesh::util::ReadColors;
 use gltf::mesh::Semantic;
 use std::path::{Path, PathBuf};
@@ -90,7 +90,7 @@ fn bake_case(dir: &Path, case: &Case) -> Baked {
     ])
     .success();
     let (document, buffers, _images) = gltf::import(&path).expect("re-read the baked glTF");
-    let report = exporter::report::read_report(&report).expect("read the report");
+    let report = bake_job::report::read_report(&report).expect("read the report");
     Baked {
         path,
         document,
@@ -593,7 +593,7 @@ fn report_elements_summary_and_none_describe_the_same_bake() {
     assert!(none.element_summary.is_none());
     // The summary is that of the full list (the same bake: same bytes of b).
     let s = summary.element_summary.expect("a summary");
-    assert_eq!(Some(s), exporter::report::ElementSummary::of(&all.elements));
+    assert_eq!(Some(s), bake_job::report::ElementSummary::of(&all.elements));
     assert_eq!(all.element_summary, Some(s));
     assert_eq!(s.count, 96);
     assert!((s.area - 6.0).abs() < 1e-9);

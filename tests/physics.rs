@@ -2,8 +2,8 @@
 //! direct light against closed-form form factors, and format independence. Each test runs the
 //! real binary on real files and reads its JSON report.
 
+use bake_job::report::{read_report, ElementEntry, Report};
 use bake_testkit::fixture;
-use exporter::report::{read_report, ElementEntry, Report};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

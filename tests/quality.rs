@@ -5,9 +5,9 @@
 
 mod common;
 
+use bake_job::report::{read_report, Report};
 use bake_testkit::fixture;
 use common::bake;
-use exporter::report::{read_report, Report};
 
 fn bake_cube(args: &[&str]) -> Report {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -49,7 +49,7 @@ fn presets_set_their_knobs_and_order_the_work() {
         assert_eq!(r.counts.elements, 6 * elements_per_wall * elements_per_wall);
         // The cube needs no shadow rays at any quality.
         assert_eq!(r.counts.rays_cast, 0);
-        if r.transport.kind == "dense" {
+        if r.transport.kind.name() == "dense" {
             // The dense transport's tolerance comes from the target and ρ_max (1.9e-3 for
             // draft, 1.9e-4 for normal).
             let tau = bake_core::accuracy::pair_tolerance(max_error, 0.75);
@@ -62,7 +62,7 @@ fn presets_set_their_knobs_and_order_the_work() {
             // fewer kernel evaluations than `normal`'s every pair, but at the tightest link
             // tolerance.
             assert_eq!(quality, "high");
-            assert_eq!(r.transport.kind, "hierarchical");
+            assert_eq!(r.transport.kind.name(), "hierarchical");
             assert_eq!(o["link_tolerance"], 0.002);
             // The hierarchy's links keep the preset's per-pair tolerance.
             assert_eq!(o["ff_tolerance"], 1e-4);

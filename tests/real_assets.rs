@@ -8,9 +8,9 @@
 
 mod common;
 
+use bake_job::report::{read_report, Report};
 use bake_testkit::{shared_dir, skip};
 use common::bake_default_in;
-use exporter::report::{read_report, Report};
 use std::path::{Path, PathBuf};
 
 /// `../shared/corpus/repro`.
@@ -102,7 +102,7 @@ fn graz_overlap_bakes_with_default_options_like_the_hand_cleaned_file() {
     let out = tempfile::tempdir().expect("tempdir");
     let (reference, _) = bake(&hand.path().join("graz_overlap.obj"), out.path(), &[]);
     // Elements of the polygons both bakes have, matched by centroid and normal.
-    let key = |e: &exporter::report::ElementEntry| {
+    let key = |e: &bake_job::report::ElementEntry| {
         let q = |v: f64| (v * 1e6).round() as i64;
         (
             e.centroid.map(q),

@@ -138,11 +138,11 @@ fn bake(input: &Path, out: &Path, report: &Path, options: &[&str], limit: Durati
         .collect();
     match status.code() {
         Some(0) if out.is_file() => {
-            let summary = match exporter::report::read_report(report) {
+            let summary = match bake_job::report::read_report(report) {
                 Ok(r) => format!(
                     "{} elements, {} transport, peak {:.0} MiB, {} warnings",
                     r.counts.elements,
-                    r.transport.kind,
+                    r.transport.kind.name(),
                     r.peak_rss_mib.values().copied().fold(0.0f64, f64::max),
                     r.warnings.len()
                 ),

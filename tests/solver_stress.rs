@@ -4,8 +4,8 @@
 //! non-convergence, and conservation of energy (emitted = absorbed + escaped) on closed and
 //! open scenes. Every run writes into a temporary directory and is checked through its report.
 
+use bake_job::report::{read_report, Report, SolverMethod};
 use bake_testkit::{file_names, fixture};
-use exporter::report::{read_report, Report, SolverMethod};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

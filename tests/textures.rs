@@ -3,9 +3,9 @@
 
 mod common;
 
+use bake_job::report::Report;
 use bake_testkit::data_uri;
 use common::{bake, bake_json, write_json};
-use exporter::report::Report;
 use serde_json::{json, Value};
 
 /// The IEC 61966-2-1 decoding, written out independently of the importer's.
@@ -110,7 +110,7 @@ fn floor_scene(factor: [f64; 3], texture: Option<(Vec<u8>, bool)>) -> Value {
     doc
 }
 
-fn floor_of(report: &Report) -> Vec<&exporter::report::ElementEntry> {
+fn floor_of(report: &Report) -> Vec<&bake_job::report::ElementEntry> {
     report
         .elements
         .iter()
@@ -264,7 +264,7 @@ fn floor_uv(p: [f64; 3]) -> [f64; 2] {
 
 /// The floor element of `report` whose square holds `p` (floor elements are axis-aligned
 /// squares).
-fn element_holding(report: &Report, p: [f64; 3]) -> Option<&exporter::report::ElementEntry> {
+fn element_holding(report: &Report, p: [f64; 3]) -> Option<&bake_job::report::ElementEntry> {
     floor_of(report).into_iter().find(|e| {
         let h = e.area.sqrt() / 2.0 + 1e-9;
         (p[0] - e.centroid[0]).abs() <= h && (p[2] - e.centroid[2]).abs() <= h
@@ -337,7 +337,7 @@ fn bake_flat(input: &std::path::Path, out: &std::path::Path, target: &str) -> Re
         report.as_os_str(),
     ])
     .success();
-    exporter::report::read_report(&report).expect("the report")
+    bake_job::report::read_report(&report).expect("the report")
 }
 
 #[test]
@@ -745,7 +745,7 @@ fn smooth_textured_bake_averages_h_to_vertices() {
         report_path.as_os_str(),
     ])
     .success();
-    let report = exporter::report::read_report(&report_path).expect("the report");
+    let report = bake_job::report::read_report(&report_path).expect("the report");
     // A smoothed vertex value is an area-weighted mean of the floor elements' H: within
     // their range, band by band.
     let floor = floor_of(&report);

@@ -12,9 +12,9 @@
 
 mod common;
 
+use bake_job::report::{read_report, Report};
 use bake_testkit::{blender_or_skip, fixture, skip};
 use common::{bake, bake_in, Run, CUBE_WALLS};
-use exporter::report::{read_report, Report};
 use preview::image::RgbImage;
 use preview::{srgb8, Camera};
 use std::path::{Path, PathBuf};

@@ -99,8 +99,8 @@ where
 
 /// A bake report with `timings` and `peak_rss_mib` (the only parts that may change between
 /// runs) removed.
-pub fn report_without_timings(path: &Path) -> exporter::report::Report {
-    let mut report = exporter::report::read_report(path).expect("read the bake report");
+pub fn report_without_timings(path: &Path) -> bake_job::report::Report {
+    let mut report = bake_job::report::read_report(path).expect("read the bake report");
     report.timings.clear();
     report.peak_rss_mib.clear();
     report
@@ -189,7 +189,7 @@ fn push(array: &mut Value, value: Value) -> usize {
 
 /// Writes `doc` as `dir/NAME.gltf`, bakes it (`--target vertex`, a report, `--quiet`, then
 /// `args`), asserts exit 0 and returns the report.
-pub fn bake_json(dir: &Path, name: &str, doc: &Value, args: &[&str]) -> exporter::report::Report {
+pub fn bake_json(dir: &Path, name: &str, doc: &Value, args: &[&str]) -> bake_job::report::Report {
     bake_json_with(dir, name, doc, args, false)
 }
 
@@ -199,7 +199,7 @@ pub fn bake_json_default(
     name: &str,
     doc: &Value,
     args: &[&str],
-) -> exporter::report::Report {
+) -> bake_job::report::Report {
     bake_json_with(dir, name, doc, args, true)
 }
 
@@ -209,7 +209,7 @@ fn bake_json_with(
     doc: &Value,
     args: &[&str],
     defaults: bool,
-) -> exporter::report::Report {
+) -> bake_job::report::Report {
     let input = dir.join(format!("{name}.gltf"));
     write_json(&input, doc);
     let out = dir.join(format!("{name}-out.gltf"));
@@ -229,7 +229,7 @@ fn bake_json_with(
     } else {
         bake(all).success();
     }
-    exporter::report::read_report(&report).expect("read the report")
+    bake_job::report::read_report(&report).expect("read the report")
 }
 
 /// A glTF scene: one mesh per (triangles, baseColor) and one light node per light

@@ -18,6 +18,8 @@
 //!
 //! This module does not integrate anything and knows no geometry: it sees ρ_max and E only.
 
+use crate::error::ErrorSummary;
+use serde::{Deserialize, Serialize};
 use solver::BANDS;
 
 /// The a-priori bound on `cond∞(I − diag(ρ)F)` for rows of `F` that sum to at most `1 + τ`;
@@ -50,8 +52,8 @@ pub fn pair_tolerance(max_error: f64, rho_max: f64) -> f64 {
     (u / r).min(max_error)
 }
 
-/// What the target asked for and what the bake could promise, for the report.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// What the target asked for and what the bake could promise: the report's `accuracy` object.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Accuracy {
     /// The target relative error of `b` (`--max-error`, or the preset's).
     pub max_error: f64,
@@ -59,22 +61,28 @@ pub struct Accuracy {
     pub rho_max: f64,
     /// The per-pair tolerance the target chose for `auto` (`None` when an explicit estimator
     /// or `--ff-tolerance` decided it, or the transport was not the dense one).
-    pub chosen_tolerance: Option<f64>,
+    pub ff_tolerance: Option<f64>,
     /// The row-sum accuracy the solver was told (what the estimator states).
     pub row_sum_accuracy: f64,
-    /// [`condition_bound`] for ρ_max and that accuracy.
-    pub condition_bound: f64,
+    /// [`condition_bound`] for ρ_max and that accuracy (`None`: unbounded, ρ_max = 1).
+    pub condition_bound: Option<f64>,
     /// Per band after the solve: the solver's condition estimate × ρ_max × the row-sum
     /// accuracy, the bound on the relative error of `b` that the form factors' accuracy
-    /// leaves (`None` where the band was not solved as a linear system).
+    /// leaves (`None` where the band was not solved as a linear system, or unbounded).
     pub error_bound: [Option<f64>; BANDS],
     /// Dense transport: rows of F past 1 and what was done about them
-    /// ([`form_factor::DenseFormFactors::limit_row_sums`]); `None` on other transports.
+    /// ([`form_factor::DenseFormFactors::limit_row_sums`]); `None` on other transports (and
+    /// absent from the report then).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub row_sums: Option<RowSums>,
+    /// The elements' error estimates summarised ([`crate::error::summary`]; absent in older
+    /// reports).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<ErrorSummary>,
 }
 
 /// The dense transport's row sums Σ_j F_ij, before and after rows past 1 were scaled to 1.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RowSums {
     /// The largest row sum as integrated.
     pub largest_before: f64,

@@ -25,6 +25,7 @@
 
 use mesher::ElementMesh;
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 use solver::BANDS;
 
 /// What the error estimate needs besides the mesh and the solution.
@@ -46,6 +47,58 @@ pub struct Inputs<'a> {
     pub sampled: &'a [bool],
     /// Shadow rays per sampled pair.
     pub samples: u32,
+}
+
+/// The per-element error estimates of a bake, per band: largest, area-weighted RMS, where the
+/// largest is, and the largest of each part (the report's `accuracy.error`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ErrorSummary {
+    pub max: [f64; BANDS],
+    pub rms: [f64; BANDS],
+    /// Per band: the element with the largest estimate and its centroid.
+    pub max_element: [usize; BANDS],
+    pub max_centroid: [[f64; 3]; BANDS],
+    /// Per band: the largest discretisation, form-factor, visibility and solver part.
+    pub max_discretisation: [f64; BANDS],
+    pub max_form_factors: [f64; BANDS],
+    pub max_visibility: [f64; BANDS],
+    pub max_solver: [f64; BANDS],
+}
+
+/// The summary of the estimates `parts`, one per element of `mesh` (RMS weighted by area, in
+/// element order).
+pub fn summary(mesh: &ElementMesh, parts: &[Parts]) -> ErrorSummary {
+    let mut s = ErrorSummary {
+        max: [0.0; BANDS],
+        rms: [0.0; BANDS],
+        max_element: [0; BANDS],
+        max_centroid: [[0.0; 3]; BANDS],
+        max_discretisation: [0.0; BANDS],
+        max_form_factors: [0.0; BANDS],
+        max_visibility: [0.0; BANDS],
+        max_solver: [0.0; BANDS],
+    };
+    let mut area = 0.0;
+    for (i, (element, p)) in mesh.elements.iter().zip(parts).enumerate() {
+        let total = p.total();
+        area += element.area;
+        for (c, &t) in total.iter().enumerate() {
+            if t > s.max[c] {
+                s.max[c] = t;
+                s.max_element[c] = i;
+                s.max_centroid[c] = element.centroid.to_array();
+            }
+            s.rms[c] += element.area * t * t;
+            s.max_discretisation[c] = s.max_discretisation[c].max(p.discretisation[c]);
+            s.max_form_factors[c] = s.max_form_factors[c].max(p.form_factors[c]);
+            s.max_visibility[c] = s.max_visibility[c].max(p.visibility[c]);
+            s.max_solver[c] = s.max_solver[c].max(p.solver[c]);
+        }
+    }
+    if area > 0.0 {
+        s.rms = s.rms.map(|x| (x / area).sqrt());
+    }
+    s
 }
 
 /// The four parts of one element's estimate, per band.

@@ -16,6 +16,7 @@
 pub mod accuracy;
 pub mod advice;
 pub mod error;
+mod plan;
 pub mod presets;
 pub mod refine;
 mod settings;
@@ -27,12 +28,18 @@ pub use settings::{
 };
 
 pub use accuracy::Accuracy;
-use form_factor::{Estimator, Occluders};
+pub use direct::LightStats;
+use form_factor::Estimator;
 use mesher::ElementMesh;
+pub use plan::{Plan, SceneSummary};
 use scene::Scene;
-use solver::{EnergyBalance, Solution, SolveError, BANDS};
+use serde::{Deserialize, Serialize};
+pub use solver::EnergyBalance;
+use solver::{Solution, SolveError, BANDS};
 use std::time::Instant;
 use transport::{HierarchicalTransport, Transport};
+pub use visibility::Effects;
+use visibility::Occluders;
 
 /// Why a bake failed. [`BakeError::is_input`] tells bad input (exit 1) from internal errors.
 #[derive(Debug, thiserror::Error)]
@@ -66,16 +73,9 @@ impl BakeError {
     }
 }
 
-/// Progress of the long stages, for a progress bar; called from any thread.
-pub trait Progress: Sync {
-    /// A stage of `total` steps (rows, polygons, iterations) begins; 0 when the number of
-    /// steps is not known in advance.
-    fn start(&self, stage: &str, total: u64);
-    /// `steps` more steps are done.
-    fn advance(&self, steps: u64);
-    /// The stage is over.
-    fn finish(&self);
-}
+/// Progress of the long stages, for a progress bar; called from any thread (defined by the
+/// transport, whose builders report through it).
+pub use transport::Progress;
 
 /// Reports nothing.
 pub struct Silent;
@@ -86,33 +86,95 @@ impl Progress for Silent {
     fn finish(&self) {}
 }
 
-/// What the bake did, for the report and the summary line.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// What the bake did, for the report (its `counts` object, keys in field order) and the
+/// summary line: the scene's and the mesh's sizes, the importer's statistics and the
+/// transport's work.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Counts {
+    pub polygons: usize,
+    pub elements: usize,
     /// Element pairs (dense) or node pairs (hierarchical) whose form factor was computed.
     pub pairs_evaluated: u64,
+    pub degenerate_dropped: usize,
+    pub quads_merged: usize,
+    pub primitives_skipped: usize,
+    pub ngons_split: usize,
+    pub faces_read: usize,
+    /// Faces dropped as duplicates of an earlier face (absent in older reports: 0).
+    #[serde(default)]
+    pub duplicates_dropped: usize,
+    /// Polygons dropped because a polygon of another primitive or node has the same corners
+    /// and facing (absent in older reports: 0).
+    #[serde(default)]
+    pub coincident_dropped: usize,
+    /// Faces wound opposite to their neighbours, kept as authored (absent in older
+    /// reports: 0).
+    #[serde(default)]
+    pub against_winding: usize,
     /// Pairs facing each other whose visibility was decided.
+    #[serde(default)]
     pub pairs_tested: u64,
     /// Of those, pairs some polygon may come between (rays were cast).
+    #[serde(default)]
     pub pairs_occludable: u64,
+    /// Shadow rays cast.
+    #[serde(default)]
     pub rays_cast: u64,
+    /// Form-factor kernel evaluations (ln r terms of the contour integral, edge terms of
+    /// point-to-polygon, centroid kernels of point-to-point).
+    #[serde(default)]
     pub kernel_evaluations: u64,
+    /// Integrated pairs computed by the contour integral, point-to-polygon and point-to-point.
+    #[serde(default)]
     pub pairs_contour: u64,
+    #[serde(default)]
     pub pairs_point_polygon: u64,
+    #[serde(default)]
     pub pairs_point_point: u64,
-    /// Hierarchical transport: links kept, nodes of the hierarchy, refinement passes.
+    /// Hierarchical transport: links between nodes (0 for the dense transport).
+    #[serde(default)]
     pub links: u64,
+    /// Hierarchical transport: nodes of the polygons' hierarchies, leaves (elements) included.
+    #[serde(default)]
     pub nodes: u64,
-    pub passes: u32,
-    /// Hierarchical transport: links with every ray blocked, polygon pairs linked, cluster
-    /// pairs dropped.
+    /// Hierarchical transport: link refinement passes (each followed by a solve).
+    #[serde(default)]
+    pub refinement_passes: u32,
+    /// Hierarchical transport: links whose every shadow ray was blocked (kept while linking,
+    /// carrying nothing).
+    #[serde(default)]
     pub blocked_links: u64,
+    /// Hierarchical transport: polygon pairs the cluster descent left for linking, and the
+    /// cluster pairs it dropped because every shadow ray between them was blocked.
+    #[serde(default)]
     pub polygon_pairs: u64,
-    pub clusters_dropped: u64,
+    #[serde(default)]
+    pub cluster_pairs_dropped: u64,
 }
 
-/// The transport a bake used and why.
-#[derive(Clone, Debug, PartialEq)]
+impl Counts {
+    /// These counts with the scene's polygon count, the importer's statistics and the element
+    /// count of `mesh` filled in.
+    pub fn with_scene(self, scene: &Scene, mesh: &ElementMesh) -> Counts {
+        let stats = &scene.stats;
+        Counts {
+            polygons: scene.polygons.len(),
+            elements: mesh.elements.len(),
+            degenerate_dropped: stats.degenerate_dropped,
+            quads_merged: stats.quads_merged,
+            primitives_skipped: stats.primitives_skipped,
+            ngons_split: stats.ngons_split,
+            faces_read: stats.faces_read,
+            duplicates_dropped: stats.duplicates_dropped,
+            coincident_dropped: stats.coincident_dropped,
+            against_winding: stats.against_winding,
+            ..self
+        }
+    }
+}
+
+/// The transport a bake used and why: the report's `transport` object.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct TransportChoice {
     pub kind: TransportKind,
     pub reason: String,
@@ -137,8 +199,8 @@ pub struct Bake {
     /// What refinement did.
     pub refinement: refine::Refinement,
     pub solution: Solution,
-    /// The solve that ran.
-    pub solve: Solve,
+    /// What the last solve planned and ran: the transport and why, the solve, the estimator.
+    pub plan: Plan,
     /// `H = F b + E / π` per element (interreflected plus direct light), when
     /// [`Request::irradiance`] asked for it.
     pub irradiance: Option<Vec<[f64; BANDS]>>,
@@ -146,12 +208,8 @@ pub struct Bake {
     pub energy: EnergyBalance,
     pub counts: Counts,
     pub effects: visibility::Effects,
-    pub transport: TransportChoice,
     /// Per element: the estimated bound on `|b − b̄|` and its parts ([`error`]).
     pub error: Vec<error::Parts>,
-    /// The form-factor estimator the bake used (under the dense transport with `auto`, its
-    /// tolerance is the one the target chose).
-    pub estimator: Estimator,
     /// The target error of `b`, the tolerance it chose and the bound the solve leaves.
     pub accuracy: Accuracy,
     /// Seconds per stage, in pipeline order (`mesh`, `visibility_setup`, `form_factors`,
@@ -173,13 +231,6 @@ pub fn peak_rss_mib_now() -> Option<f64> {
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib / 1024.0)
-}
-
-impl Bake {
-    /// The report's `options`: the settings as resolved, with the transport used.
-    pub fn options_json(&self, settings: &Settings) -> serde_json::Value {
-        settings.to_json(self.transport.kind, self.estimator)
-    }
 }
 
 /// The most interreflections `--bounces` may ask for: each is one product with the
@@ -204,7 +255,10 @@ pub const DEFAULT_GROWTH_DIVISOR: u64 = 4;
 /// until the estimate meets the target ([`refine`]).
 pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Result<Bake, BakeError> {
     let first = run_mesh(scene, settings, progress, None)?;
-    refine::refine(scene, settings, progress, first)
+    let mut bake = refine::refine(scene, settings, progress, first)?;
+    bake.counts = bake.counts.with_scene(scene, &bake.mesh);
+    bake.accuracy.error = Some(error::summary(&bake.mesh, &bake.error));
+    Ok(bake)
 }
 
 /// Each stage's wall time (s) and the peak memory (MiB) when it ended, in order.
@@ -243,7 +297,7 @@ pub(crate) fn run_mesh(
 ) -> Result<Bake, BakeError> {
     let mut stages = Stages::new();
     let mut warnings = Vec::new();
-    let (mesh, mut transport, solve) = plan_and_mesh(scene, settings, given, &mut warnings)?;
+    let (mesh, plan) = plan_and_mesh(scene, settings, given, &mut warnings)?;
     let (mut rho, emission) = element_values(scene, &mesh);
     warnings.extend(limit_reflectance(
         scene,
@@ -277,11 +331,10 @@ pub(crate) fn run_mesh(
                 .to_string(),
         );
     }
-    // The dense transport's estimator: `auto`'s tolerance from the target and ρ_max.
-    let estimator = match transport.kind {
-        TransportKind::Hierarchical => settings.estimator,
-        _ => settings.dense_estimator(rho_max),
-    };
+    let mut plan = plan.with_rho_max(rho_max);
+    if dark {
+        plan.not_built();
+    }
     let problem = transports::Problem {
         scene,
         settings,
@@ -292,23 +345,18 @@ pub(crate) fn run_mesh(
         external: &light.external,
         source: &light.source,
         rho_max,
-        solve,
-        estimator,
+        plan: &plan,
     };
     let done = if dark {
-        transport.reason = format!(
-            "{}; not built: nothing emits or reflects direct light, so b = 0 exactly",
-            transport.reason
-        );
         transports::dark(&problem)?
-    } else if transport.kind == TransportKind::Hierarchical {
+    } else if plan.transport().kind == TransportKind::Hierarchical {
         transports::hierarchical(&problem, progress, &mut stages)?
     } else {
         transports::dense(&problem, progress, &mut stages, &mut warnings)?
     };
     stages.record("energy");
 
-    let accuracy = accuracy_of(settings, &transport, estimator, rho_max, &done);
+    let accuracy = accuracy_of(&plan, rho_max, &done);
     let error = estimate_error(&problem, &done);
     stages.record("error_estimate");
 
@@ -332,13 +380,11 @@ pub(crate) fn run_mesh(
         shadow_class: light.lit.shadow_class,
         refinement: refine::Refinement::default(),
         solution,
-        solve,
+        plan,
         irradiance,
         energy,
         counts,
         effects,
-        transport,
-        estimator,
         accuracy,
         timings: stages.timings,
         peak_rss_mib: stages.peak_rss_mib,
@@ -347,43 +393,31 @@ pub(crate) fn run_mesh(
     })
 }
 
-/// The cost first, from the element count alone (a request too large for this machine is
-/// refused before anything is allocated), the transport and solver it calls for, then the
-/// mesh.
+/// The plan of one solve on the mesher's grids (`given` = `None`) or on a given (refined)
+/// mesh, and that mesh.
 fn plan_and_mesh(
     scene: &Scene,
     settings: &Settings,
     given: Option<ElementMesh>,
     warnings: &mut Vec<String>,
-) -> Result<(ElementMesh, TransportChoice, Solve), BakeError> {
-    let planned = match &given {
+) -> Result<(ElementMesh, Plan), BakeError> {
+    let elements = match &given {
         Some(mesh) => mesh.elements.len() as u64,
         None => mesher::element_count(&scene.polygons, settings.subdivision)?,
     };
-    let rho_bound = scene_rho_bound(scene, settings.max_reflectance);
-    // A refined mesh is chosen for like the grids: both transports take it (the hierarchical
+    // A refined mesh is planned for like the grids: both transports take it (the hierarchical
     // one's trees continue below the grid elements into their quarters).
-    let transport = choose_transport(
-        settings,
-        usize::try_from(planned).unwrap_or(usize::MAX),
-        rho_bound,
-    );
-    let amplification = accuracy::condition_bound(rho_bound, 0.0);
-    if transport.kind == TransportKind::Hierarchical && amplification >= BRIGHT_AMPLIFICATION {
-        warnings.push(format!(
-            "reflectances up to {rho_bound} amplify errors up to {amplification:.0}x: the \
-             hierarchical transport's link tolerance {} may leave b far from --max-error {:e} \
-             (a smaller --link-tolerance, or --transport dense where memory allows, tightens it)",
-            settings.link_tolerance, settings.max_error
-        ));
-    }
-    let solve = settings.solve(transport.kind);
-    check_memory(planned, transport.kind, solve, scene_bands(scene))?;
+    let summary = SceneSummary {
+        elements,
+        rho_bound: scene_rho_bound(scene, settings.max_reflectance),
+        bands: scene_bands(scene),
+    };
+    let plan = Plan::new(settings, &summary, warnings)?;
     let mesh = match given {
         Some(mesh) => mesh,
         None => mesher::mesh(&scene.polygons, settings.subdivision)?,
     };
-    Ok((mesh, transport, solve))
+    Ok((mesh, plan))
 }
 
 /// Punctual lights: E per element, its irradiance E/π in b's unit (a diffuse surface under
@@ -444,17 +478,13 @@ impl Light {
 
 /// What the bake's accuracy rests on: the target, ρ_max, the form factors' stated accuracy,
 /// the condition bound and the dense rows that were limited.
-fn accuracy_of(
-    settings: &Settings,
-    transport: &TransportChoice,
-    estimator: Estimator,
-    rho_max: f64,
-    done: &transports::Transported,
-) -> Accuracy {
+fn accuracy_of(plan: &Plan, rho_max: f64, done: &transports::Transported) -> Accuracy {
+    let (settings, estimator) = (plan.settings(), plan.estimator());
     let row_sum_accuracy = estimator.row_sum_accuracy();
-    let chosen_tolerance = match estimator {
+    let ff_tolerance = match estimator {
         Estimator::Auto { tolerance }
-            if settings.derive_tolerance && transport.kind != TransportKind::Hierarchical =>
+            if settings.derive_tolerance
+                && plan.transport().kind != TransportKind::Hierarchical =>
         {
             Some(tolerance)
         }
@@ -463,13 +493,14 @@ fn accuracy_of(
     Accuracy {
         max_error: settings.max_error,
         rho_max,
-        chosen_tolerance,
+        ff_tolerance,
         row_sum_accuracy,
-        condition_bound: accuracy::condition_bound(rho_max, row_sum_accuracy),
-        error_bound: done
-            .solution
-            .condition
-            .map(|c| c.map(|c| c * rho_max * row_sum_accuracy)),
+        condition_bound: Some(accuracy::condition_bound(rho_max, row_sum_accuracy))
+            .filter(|c| c.is_finite()),
+        error_bound: done.solution.condition.map(|c| {
+            c.map(|c| c * rho_max * row_sum_accuracy)
+                .filter(|b| b.is_finite())
+        }),
         row_sums: done
             .row_sums
             .as_ref()
@@ -479,6 +510,8 @@ fn accuracy_of(
                 scaled: l.scaled,
                 seen_twice: l.beyond_margin.len(),
             }),
+        // Summarised once the bake is final (after refinement): [`run`].
+        error: None,
     }
 }
 
@@ -496,7 +529,7 @@ fn estimate_error(p: &transports::Problem, done: &transports::Transported) -> Ve
         b: &solution.b,
         rho: p.rho,
         source: p.source,
-        row_sum_accuracy: p.estimator.row_sum_accuracy(),
+        row_sum_accuracy: p.plan.estimator().row_sum_accuracy(),
         condition: solution.condition.map(|c| c.unwrap_or(1.0)),
         rho_max: p.rho_max,
         residual: [0, 1, 2].map(|c| {
@@ -899,67 +932,6 @@ fn limit_reflectance(
          material and white textures on a white base colour have rho = 1",
         advice::list(&named)
     ))
-}
-
-/// Which transport `settings` asks for on a scene of `n` elements whose reflectances are at
-/// most `rho_bound`, and why.
-fn choose_transport(settings: &Settings, n: usize, rho_bound: f64) -> TransportChoice {
-    // What the hierarchy's links could cost b: their tolerance amplified by the a-priori
-    // condition bound, against the target.
-    let amplification = accuracy::condition_bound(rho_bound, 0.0);
-    let amplified = amplification * rho_bound * settings.link_tolerance;
-    let bright = amplification >= BRIGHT_AMPLIFICATION && amplified > settings.max_error;
-    if let Some(path) = &settings.load_links {
-        return TransportChoice {
-            kind: TransportKind::Hierarchical,
-            reason: format!("links loaded from {}", path.display()),
-        };
-    }
-    match settings.transport {
-        TransportKind::Dense => TransportChoice {
-            kind: TransportKind::Dense,
-            reason: "--transport dense".into(),
-        },
-        TransportKind::Hierarchical => TransportChoice {
-            kind: TransportKind::Hierarchical,
-            reason: "--transport hierarchical".into(),
-        },
-        TransportKind::Auto if settings.save_links => TransportChoice {
-            kind: TransportKind::Hierarchical,
-            reason: "--save-links: the links are the hierarchical transport's".into(),
-        },
-        TransportKind::Auto if settings.direct_requested => TransportChoice {
-            kind: TransportKind::Dense,
-            reason: "--solver direct needs the dense transport".into(),
-        },
-        TransportKind::Auto if n > DENSE_CROSSOVER && n <= BRIGHT_DENSE_MAX && bright => {
-            TransportChoice {
-                kind: TransportKind::Dense,
-                reason: format!(
-                    "{n} elements, more than the crossover of {DENSE_CROSSOVER}, but reflectances \
-                     up to {rho_bound} amplify errors up to {:.0}×: the hierarchy's link \
-                     tolerance {} could cost b {amplified:.1e}, more than --max-error {:e}; the \
-                     dense transport meets it (up to {BRIGHT_DENSE_MAX} elements)",
-                    amplification, settings.link_tolerance, settings.max_error
-                ),
-            }
-        }
-        TransportKind::Auto if n <= DENSE_CROSSOVER => TransportChoice {
-            kind: TransportKind::Dense,
-            reason: format!(
-                "{n} elements, at most the crossover of {DENSE_CROSSOVER}: the dense transport \
-                 is exact and about as fast"
-            ),
-        },
-        TransportKind::Auto => TransportChoice {
-            kind: TransportKind::Hierarchical,
-            reason: format!(
-                "{n} elements, more than the crossover of {DENSE_CROSSOVER}: the hierarchical \
-                 transport's links grow about linearly with the elements, the dense one's pairs \
-                 quadratically"
-            ),
-        },
-    }
 }
 
 /// Bytes every element costs whatever the transport: the element (80 B) and its grid

@@ -36,8 +36,8 @@ pub const MAX_PASSES: u32 = 8;
 /// whole scene again (the grid's included).
 pub const MAX_HIERARCHICAL_PASSES: u32 = 3;
 
-/// What refinement did, for the report.
-#[derive(Clone, Debug, Default, PartialEq)]
+/// What refinement did: the report's `refinement` object.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Refinement {
     /// Whether refinement was on and could run (dense transport).
     pub enabled: bool,
@@ -45,7 +45,8 @@ pub struct Refinement {
     pub passes: u32,
     pub elements_before: usize,
     pub elements_after: usize,
-    /// The element budget ([`crate::Settings::element_budget`]).
+    /// The element budget ([`crate::Settings::element_budget`]; absent in older reports).
+    #[serde(default)]
     pub budget: u64,
     /// Elements split, over all passes.
     pub split: usize,
@@ -174,7 +175,7 @@ fn not_refined(settings: &Settings, bake: &Bake) -> Option<&'static str> {
         // Saved links are keyed by the grids (and loaded ones were made over them).
         return Some("not refined: --save-links and --load-links keep the grids");
     }
-    let hierarchical = bake.transport.kind == TransportKind::Hierarchical;
+    let hierarchical = bake.plan.transport().kind == TransportKind::Hierarchical;
     if hierarchical && !settings.refine_requested && settings.max_elements.is_none() {
         // Each solve of a refining hierarchical bake links the whole scene again: a
         // walkthrough's default bake stays one solve, and `--refine on` asks for more.
@@ -316,7 +317,7 @@ pub fn refine(
         bake.refinement.stopped = why.into();
         return Ok(bake);
     }
-    let hierarchical = bake.transport.kind == TransportKind::Hierarchical;
+    let hierarchical = bake.plan.transport().kind == TransportKind::Hierarchical;
     // Every solve of a hierarchical bake links the whole scene again: fewer of them.
     let max_passes = if hierarchical {
         MAX_HIERARCHICAL_PASSES

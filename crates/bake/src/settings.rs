@@ -28,8 +28,10 @@ pub enum SolverKind {
     Iterative,
 }
 
-/// `--transport`: how light transport between elements is represented.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// `--transport`: how light transport between elements is represented (in the report, by
+/// [`TransportKind::name`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum TransportKind {
     /// Dense for small scenes (exact), hierarchical above [`crate::DENSE_CROSSOVER`] elements.

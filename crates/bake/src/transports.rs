@@ -1,18 +1,20 @@
-//! The transport of one bake, built and solved: none when nothing emits or reflects a light
-//! (b = 0 exactly), the hierarchical transport (links, or links loaded from a file), or the
-//! dense one (every element pair's form factor, rows limited to 1). Each returns the same
-//! [`Transported`], so `run_mesh` never matches on the kind after this.
+//! The transport of one bake, built ([`transport::build`]) and solved: none when nothing
+//! emits or reflects a light (b = 0 exactly), the hierarchical transport (links, or links
+//! loaded from a file), or the dense one (every element pair's form factor, rows limited to
+//! 1). Each returns the same [`Transported`], so `run_mesh` never matches on the kind after
+//! this; after the build, the solve asks the operator whether it has entries for LU.
 
 use crate::{
     available_memory, explain_refusal, finish, links_key, load_links, row_sum_warning, solve_with,
-    BakeError, Counts, Irradiance, NoTransport, Progress, SavedLinks, Settings, Solve, Stages,
-    TransportKind, LINK_PASSES, ROW_SUM_WARNING_MARGIN,
+    BakeError, Counts, Irradiance, NoTransport, Plan, Progress, SavedLinks, Settings, Solve,
+    Stages, TransportKind,
 };
-use form_factor::{Estimator, FormFactors, Occluders, Occlusion, RowSumLimit};
+use form_factor::RowSumLimit;
 use mesher::ElementMesh;
 use scene::Scene;
 use solver::{EnergyBalance, Solution, BANDS};
-use transport::{HierarchicalOptions, HierarchicalTransport, LinkError, LinkProgress};
+use transport::{Built, LinkError, Stats};
+use visibility::Occluders;
 
 /// What every transport is given.
 pub(crate) struct Problem<'a> {
@@ -27,9 +29,8 @@ pub(crate) struct Problem<'a> {
     /// e + ρ H⁰ per element.
     pub source: &'a [[f64; BANDS]],
     pub rho_max: f64,
-    pub solve: Solve,
-    /// The dense transport's estimator (`auto`'s tolerance from the target and ρ_max).
-    pub estimator: Estimator,
+    /// The transport, solve and estimator this solve runs with.
+    pub plan: &'a Plan,
 }
 
 impl Problem<'_> {
@@ -110,109 +111,43 @@ pub(crate) fn hierarchical(
     } else {
         0
     };
-    let (h, loaded) = match &settings.load_links {
+    let built = match &settings.load_links {
         Some(path) => {
             progress.start("loading links", 0);
             let loaded = load_links(path, p.scene, p.mesh, key);
             progress.finish();
-            (loaded?, true)
+            stages.record("links");
+            let polygons = p.scene.polygons.len();
+            transport::hierarchical(loaded?, polygons, settings.link_samples, true)
         }
-        None => (build_links(p, progress)?, false),
+        None => {
+            let max_links = available_memory().map_or(u64::MAX, |bytes| {
+                bytes / transport::hierarchical::BYTES_PER_LINK
+            });
+            let options = transport::Options::Hierarchical(p.plan.hierarchical_options(max_links));
+            build(p, &options, progress, stages)?
+        }
     };
-    stages.record("links");
-    let s = h.stats();
-    let counts = Counts {
-        // Integrated node pairs (the kept links); screened pairs are in the stats.
-        pairs_evaluated: s.by_method.iter().sum(),
-        pairs_tested: s.pairs_tested,
-        pairs_occludable: s.pairs_occludable,
-        rays_cast: s.rays_cast,
-        kernel_evaluations: s.kernel_evaluations,
-        pairs_contour: s.by_method[0],
-        pairs_point_polygon: s.by_method[1],
-        pairs_point_point: s.by_method[2],
-        links: s.links,
-        nodes: s.nodes,
-        passes: s.passes,
-        blocked_links: s.blocked_links,
-        polygon_pairs: s.polygon_pairs,
-        clusters_dropped: s.clusters_dropped,
-    };
-    let effects = visibility::Effects {
-        occlusion: s.pairs_occludable > 0,
-        reason: if loaded {
-            "links loaded: their visible fractions are those computed when they were saved"
-                .to_string()
-        } else if s.pairs_occludable > 0 {
-            format!(
-                "{} of the {} node pairs tested may be partly hidden by another polygon: \
-                 shadow rays were cast for them",
-                s.pairs_occludable, s.pairs_tested
-            )
-        } else {
-            format!(
-                "no polygon can come between any of the {} node pairs tested: no rays are cast",
-                s.pairs_tested
-            )
-        },
-    };
-    let solution = solve_with(&h, p.solve, p.rho, p.source, progress)
-        .map_err(|e| explain_refusal(e, settings, settings.estimator, p.rho_max))?;
-    // The hierarchy keeps no per-polygon record: every element is charged.
-    let occluded = s.pairs_occludable > 0;
+    let solution = solve(p, &built, progress)?;
     stages.record("solve");
-    let (irradiance, energy) = p.finish(&h, &solution)?;
+    let (irradiance, energy) = p.finish(
+        &built.operator.view().map_err(BakeError::Internal)?,
+        &solution,
+    )?;
+    let saved_links = match built.operator.into_links() {
+        Some(transport) if settings.save_links => Some(SavedLinks { key, transport }),
+        _ => None,
+    };
     Ok(Transported {
         solution,
         irradiance,
         energy,
-        counts,
-        effects,
-        sampled_polygons: vec![occluded; p.scene.polygons.len()],
-        samples: if occluded { settings.link_samples } else { 0 },
+        counts: counts(&built.stats),
+        effects: built.effects,
+        sampled_polygons: built.sampled_polygons,
+        samples: built.samples,
         row_sums: None,
-        saved_links: settings
-            .save_links
-            .then_some(SavedLinks { key, transport: h }),
-    })
-}
-
-/// Links between the coarsest node pairs that meet the link tolerance.
-fn build_links(p: &Problem, progress: &dyn Progress) -> Result<HierarchicalTransport, BakeError> {
-    let settings = p.settings;
-    let max_links = available_memory().map_or(u64::MAX, |bytes| {
-        bytes / transport::hierarchical::BYTES_PER_LINK
-    });
-    let options = HierarchicalOptions {
-        link_tolerance: settings.link_tolerance,
-        samples: settings.link_samples,
-        estimator: settings.estimator,
-        contour: settings.contour,
-        passes: LINK_PASSES,
-        max_links,
-    };
-    progress.start("links", p.scene.polygons.len() as u64);
-    let built = HierarchicalTransport::build(
-        &p.scene.polygons,
-        p.mesh,
-        p.occluders,
-        p.rho,
-        p.source,
-        &options,
-        &|step| match step {
-            LinkProgress::Polygons(k) | LinkProgress::Links(k) => progress.advance(k),
-            LinkProgress::Pass { pass, links } => {
-                progress.finish();
-                progress.start(&format!("links pass {pass}"), links);
-            }
-        },
-    );
-    progress.finish();
-    built.map_err(|e| match e {
-        LinkError::Solve(e) => {
-            explain_refusal(BakeError::Solve(e), settings, settings.estimator, p.rho_max)
-        }
-        e => BakeError::TooLarge(e.to_string()),
+        saved_links,
     })
 }
 
@@ -224,77 +159,113 @@ pub(crate) fn dense(
     stages: &mut Stages,
     warnings: &mut Vec<String>,
 ) -> Result<Transported, BakeError> {
-    let settings = p.settings;
-    let n = p.mesh.elements.len();
     crate::check_memory(
-        n as u64,
+        p.mesh.elements.len() as u64,
         TransportKind::Dense,
-        p.solve,
+        p.plan.solve(),
         crate::distinct_bands(p.rho),
     )?;
-    // The occlusion pre-pass (polygon pairs × candidate occluders) can take seconds.
-    progress.start("occlusion", p.occluders.len() as u64);
-    let occludable = p
-        .occluders
-        .occludable_pairs_with_progress(&|k| progress.advance(k));
-    progress.finish();
-    let effects = occludable.effects();
-    let mut sampled_polygons = vec![false; p.scene.polygons.len()];
-    for &(a, b) in occludable.pairs() {
-        for k in [a, b] {
-            if let Some(s) = sampled_polygons.get_mut(k as usize) {
-                *s = true;
-            }
-        }
-    }
-    stages.record("occludable_pairs");
-    let mut form_factors = FormFactors::new(p.mesh, settings.contour).with_estimator(p.estimator);
-    if effects.occlusion {
-        form_factors = form_factors.with_occlusion(Occlusion {
-            occluders: p.occluders,
-            pairs: &occludable,
-            samples: settings.visibility_samples,
-        });
-    }
-    progress.start("form factors", n as u64);
-    let mut matrix = form_factors.dense_with_progress(&|rows| progress.advance(rows));
-    progress.finish();
-    // Geometry never creates light: rows past 1 (coincident or interpenetrating surfaces) are
-    // scaled to 1, reciprocity kept.
-    let limited = matrix.limit_row_sums(p.estimator.row_sum_accuracy().max(ROW_SUM_WARNING_MARGIN));
-    warnings.extend(row_sum_warning(p.scene, p.mesh, &limited.beyond_margin));
-    stages.record("form_factors");
-    let stats = matrix.stats;
-    let counts = Counts {
-        pairs_evaluated: stats.pairs_integrated,
-        pairs_tested: stats.visibility.pairs_tested,
-        pairs_occludable: stats.visibility.pairs_occludable,
-        rays_cast: stats.visibility.rays_cast,
-        kernel_evaluations: stats.evaluations,
-        pairs_contour: stats.pairs_by_method.contour,
-        pairs_point_polygon: stats.pairs_by_method.point_polygon,
-        pairs_point_point: stats.pairs_by_method.point_point,
-        ..Counts::default()
+    let options = transport::Options::Dense(p.plan.dense_options());
+    let built = build(p, &options, progress, stages)?;
+    let row_sums = match &built.stats {
+        Stats::Dense { row_sums, .. } => Some(row_sums.clone()),
+        Stats::Hierarchical(_) => None,
     };
-    let f = solver::DenseMatrix::new(n, &matrix.data)
-        .map_err(BakeError::Internal)?
-        .with_accuracy(p.estimator.row_sum_accuracy());
-    let solution = match p.solve {
-        Solve::Direct => solver::solve_direct(&f, p.rho, p.source).map_err(BakeError::Solve),
-        _ => solve_with(&f, p.solve, p.rho, p.source, progress),
+    if let Some(limited) = &row_sums {
+        warnings.extend(row_sum_warning(p.scene, p.mesh, &limited.beyond_margin));
     }
-    .map_err(|e| explain_refusal(e, settings, p.estimator, p.rho_max))?;
+    let solution = solve(p, &built, progress)?;
     stages.record("solve");
-    let (irradiance, energy) = p.finish(&f, &solution)?;
+    let (irradiance, energy) = p.finish(
+        &built.operator.view().map_err(BakeError::Internal)?,
+        &solution,
+    )?;
     Ok(Transported {
         solution,
         irradiance,
         energy,
-        counts,
-        effects,
-        sampled_polygons,
-        samples: settings.visibility_samples,
-        row_sums: Some(limited),
+        counts: counts(&built.stats),
+        effects: built.effects,
+        sampled_polygons: built.sampled_polygons,
+        samples: built.samples,
+        row_sums,
         saved_links: None,
     })
+}
+
+/// [`transport::build`] for this problem, its stages timed into `stages`.
+fn build(
+    p: &Problem,
+    options: &transport::Options,
+    progress: &dyn Progress,
+    stages: &mut Stages,
+) -> Result<Built, BakeError> {
+    let problem = transport::Problem {
+        polygons: &p.scene.polygons,
+        mesh: p.mesh,
+        occluders: p.occluders,
+        rho: p.rho,
+        source: p.source,
+    };
+    transport::build(&problem, options, progress, &mut |stage| {
+        stages.record(stage)
+    })
+    .map_err(|e| match e {
+        LinkError::Solve(e) => explain_refusal(
+            BakeError::Solve(e),
+            p.settings,
+            p.settings.estimator,
+            p.rho_max,
+        ),
+        e => BakeError::TooLarge(e.to_string()),
+    })
+}
+
+/// Solves the system on a built operator: LU where the operator has entries and the plan
+/// asks for it, else through products ([`solve_with`]).
+fn solve(p: &Problem, built: &Built, progress: &dyn Progress) -> Result<Solution, BakeError> {
+    let view = built.operator.view().map_err(BakeError::Internal)?;
+    let solve = p.plan.solve();
+    match (solve, view.dense()) {
+        (Solve::Direct, Some(f)) => {
+            solver::solve_direct(&f, p.rho, p.source).map_err(BakeError::Solve)
+        }
+        _ => solve_with(&view, solve, p.rho, p.source, progress),
+    }
+    .map_err(|e| explain_refusal(e, p.settings, p.plan.estimator(), p.rho_max))
+}
+
+/// The report's counts of what building the transport did.
+fn counts(stats: &Stats) -> Counts {
+    match stats {
+        Stats::Dense { form_factors, .. } => Counts {
+            pairs_evaluated: form_factors.pairs_integrated,
+            pairs_tested: form_factors.visibility.pairs_tested,
+            pairs_occludable: form_factors.visibility.pairs_occludable,
+            rays_cast: form_factors.visibility.rays_cast,
+            kernel_evaluations: form_factors.evaluations,
+            pairs_contour: form_factors.pairs_by_method.contour,
+            pairs_point_polygon: form_factors.pairs_by_method.point_polygon,
+            pairs_point_point: form_factors.pairs_by_method.point_point,
+            ..Counts::default()
+        },
+        Stats::Hierarchical(s) => Counts {
+            // Integrated node pairs (the kept links); screened pairs are in the stats.
+            pairs_evaluated: s.by_method.iter().sum(),
+            pairs_tested: s.pairs_tested,
+            pairs_occludable: s.pairs_occludable,
+            rays_cast: s.rays_cast,
+            kernel_evaluations: s.kernel_evaluations,
+            pairs_contour: s.by_method[0],
+            pairs_point_polygon: s.by_method[1],
+            pairs_point_point: s.by_method[2],
+            links: s.links,
+            nodes: s.nodes,
+            refinement_passes: s.passes,
+            blocked_links: s.blocked_links,
+            polygon_pairs: s.polygon_pairs,
+            cluster_pairs_dropped: s.clusters_dropped,
+            ..Counts::default()
+        },
+    }
 }

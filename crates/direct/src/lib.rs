@@ -55,12 +55,15 @@ impl Default for Options {
     }
 }
 
-/// What one light's direct-light pass did.
+/// What one light's direct-light pass did (the bake report's per-light counts; `flux` enters
+/// the report as `delivered`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct LightStats {
     /// `Σ_i A_i E_i / I`: the elements' area-weighted illuminance per unit intensity (m² for a
     /// directional light's lux, sr·… for candela: m² · lux / cd), so the light delivered
     /// `flux × I` lumens, `flux × I / π` in the report's energy unit.
+    #[cfg_attr(feature = "serde", serde(skip))]
     pub flux: f64,
     /// Elements receiving some light from it.
     pub elements_lit: u64,

@@ -1,9 +1,11 @@
-//! Writes the result of a bake: the baked glTF (`.gltf` + `.bin`, or `.glb`) and the bake
-//! report (JSON). The last module of the pipeline (Goral et al. 1984, §3: the computed
-//! intensities are displayed), here written out for any glTF viewer.
+//! Writes the result of a bake: the baked glTF (`.gltf` + `.bin`, or `.glb`) and the
+//! lightmap glTF, all through one output transaction ([`OutputSet`]). The last module of the
+//! pipeline (Goral et al. 1984, §3: the computed intensities are displayed), here written
+//! out for any glTF viewer. (The bake report's schema is `bake-job`'s: it is made of the
+//! bake's own result values, which this crate does not know.)
 //!
-//! Public API: [`write_gltf`] with a [`Bake`]; [`report::write_report`] with a
-//! [`report::Report`].
+//! Public API: [`write_gltf`] with a [`Bake`]; [`OutputSet`] for a set of files renamed into
+//! place together.
 //!
 //! The baked glTF keeps the input's nodes (same order and indices), names, transforms,
 //! children and scenes. Meshes are written un-instanced: every node whose mesh has baked
@@ -20,7 +22,6 @@ mod document;
 mod files;
 mod geometry;
 mod lightmap_gltf;
-pub mod report;
 mod same_file;
 
 pub use files::{check_target, remove_stale_temporaries, OutputSet};

@@ -1,14 +1,12 @@
-//! No NaN or infinity reaches an output file: the glTF writer and the report writer check
-//! every value before writing, name the element and its polygon's origin, and write
-//! nothing.
+//! No NaN or infinity reaches a baked glTF: the writer checks every value before writing,
+//! names the element and its polygon's origin, and writes nothing (the report's check is
+//! bake-job's `tests/report.rs`).
 
 mod common;
 
-use bake_exporter::report::{write_report, EnergyInfo, Report, SolverInfo, SolverMethod};
 use bake_exporter::{write_gltf, Bake, ExportError, Shading};
 use bake_testkit::file_names;
-use common::{sample_bake, Fixture};
-use std::path::Path;
+use common::{non_finite, sample_bake, Fixture, ELEMENT};
 
 fn bake<'a>(fixture: &'a Fixture, radiosity: &'a [[f64; 3]], shading: Shading) -> Bake<'a> {
     Bake {
@@ -21,18 +19,6 @@ fn bake<'a>(fixture: &'a Fixture, radiosity: &'a [[f64; 3]], shading: Shading) -
         exposure: 1.0,
     }
 }
-
-/// The error's message, asserting it is a one-line `NonFinite`.
-fn non_finite(result: Result<(), ExportError>) -> String {
-    let error = result.expect_err("a non-finite value is refused");
-    assert!(matches!(error, ExportError::NonFinite { .. }), "{error:?}");
-    let message = error.to_string();
-    assert!(!message.contains('\n'), "{message}");
-    message
-}
-
-/// An element of node 2's instance of quad A (polygon 4).
-const ELEMENT: usize = 8;
 
 #[test]
 fn infinite_or_nan_radiosity_is_refused_naming_the_element() {
@@ -96,73 +82,4 @@ fn nan_vertex_position_is_refused_naming_the_element() {
     assert!(message.contains("POSITION"), "{message}");
     assert!(message.contains("element "), "{message}");
     assert!(file_names(dir.path()).is_empty(), "nothing written");
-}
-
-fn report_with(radiosity: &[[f64; 3]]) -> Report {
-    let fixture = sample_bake();
-    let solver = SolverInfo {
-        method: SolverMethod::Direct,
-        bounces: None,
-        residual: [0.0; 3],
-        residual_relative: [false; 3],
-        factorizations: 1,
-        condition: [Some(3.0), None, Some(2.5)],
-        iterations: [0; 3],
-    };
-    Report::new(
-        Path::new("in.gltf"),
-        &fixture.scene,
-        &fixture.mesh,
-        radiosity,
-        solver,
-    )
-    .expect("a report")
-}
-
-#[test]
-fn report_with_nan_is_refused_not_written_as_null() {
-    let fixture = sample_bake();
-    let mut radiosity = fixture.radiosity.clone();
-    radiosity[ELEMENT][1] = f64::NAN;
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    let path = dir.path().join("report.json");
-
-    let message = non_finite(write_report(&path, &report_with(&radiosity)));
-    let polygon = fixture.mesh.elements[ELEMENT].polygon;
-    for part in [
-        format!("element {ELEMENT} (polygon {polygon}: node "),
-        "b [".into(),
-    ] {
-        assert!(message.contains(&part), "{part:?} in {message}");
-    }
-
-    let mut report = report_with(&fixture.radiosity);
-    report.timings.insert("solve".into(), f64::INFINITY);
-    let message = non_finite(write_report(&path, &report));
-    assert!(message.contains("timing \"solve\""), "{message}");
-
-    let mut report = report_with(&fixture.radiosity);
-    report.solver.residual[2] = f64::NAN;
-    let message = non_finite(write_report(&path, &report));
-    assert!(message.contains("residual"), "{message}");
-
-    let mut report = report_with(&fixture.radiosity);
-    report.solver.condition[0] = Some(f64::INFINITY);
-    let message = non_finite(write_report(&path, &report));
-    assert!(message.contains("condition"), "{message}");
-
-    let mut report = report_with(&fixture.radiosity);
-    report.energy = Some(EnergyInfo {
-        delivered: [0.0; 3],
-        emitted: [1.0; 3],
-        absorbed: [0.5, f64::NAN, 0.5],
-        escaped: [0.5; 3],
-        imbalance: [0.0; 3],
-        imbalance_relative: [true; 3],
-    });
-    let message = non_finite(write_report(&path, &report));
-    assert!(message.contains("energy absorbed"), "{message}");
-
-    assert!(file_names(dir.path()).is_empty(), "nothing written");
-    write_report(&path, &report_with(&fixture.radiosity)).expect("a finite report is written");
 }

@@ -5,6 +5,9 @@
 
 mod common;
 
+// The shared `common` module names it.
+use bake_exporter::ExportError;
+
 use bake_exporter::{write_gltf, Bake, Shading};
 use bake_testkit::{skip_unless_set, validator_available, validator_output};
 use common::sample_bake;

@@ -30,7 +30,7 @@ use mesher::ElementMesh;
 use polygon::Poly;
 use rayon::prelude::*;
 use std::sync::Mutex;
-pub use visibility::{self, Counters, OccludablePairs, Occluders, Visibility};
+use visibility::{Counters, OccludablePairs, Occluders, Visibility};
 
 /// Normals with `n_i · n_j ≥ 1 − PARALLEL` count as parallel (angle ≤ 1.4e-7 rad). Two
 /// elements tilted by θ see each other with F ~ 0.1 θ² at most (e.g. 0.078 θ² for unit squares

@@ -13,7 +13,7 @@
 //! feature derives `clap::ValueEnum` on all of them.
 
 mod outputs;
-mod report;
+pub mod report;
 mod summary;
 
 use anyhow::{anyhow, Context};
@@ -26,12 +26,12 @@ pub use bake_core::{
     EstimatorKind, Progress, Request, SolverKind, TransportKind, DEFAULT_MAX_REFLECTANCE,
     MAX_BOUNCES,
 };
-pub use exporter::report::ElementsIncluded;
 pub use form_factor::ContourOptions;
 pub use lightmap::{UvMode, DEFAULT_MAX_ATLASES, DEFAULT_MAX_SIZE};
 pub use mesher::{Shading, Subdivision};
 /// The software rasterizer behind `bake preview`.
 pub use preview;
+pub use report::ElementsIncluded;
 
 /// Above this many elements a report lists no elements unless `--report-elements all` asks
 /// (each costs about 400 bytes of JSON).
@@ -227,13 +227,12 @@ pub fn run<E: Events>(job: &Job, events: &E) -> Result<Done, Failure> {
         let baked = report::Baked {
             job,
             scene: &scene,
-            settings: &settings,
             bake: &bake,
             lightmap: lightmap.as_ref(),
             exposure,
         };
         let report = baked.report(path, &mut warnings, stages, started)?;
-        exporter::report::stage_report(&mut set, path, &report)
+        report::stage_report(&mut set, path, &report)
             .with_context(|| format!("cannot write {}", path.display()))
             .map_err(internal)?;
     }

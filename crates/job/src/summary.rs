@@ -25,7 +25,7 @@ pub(crate) fn line(
     {
         hardness += &format!(", cond {cond:.1e}");
     }
-    if matches!(bake.solve, bake_core::Solve::Iterative(_)) {
+    if matches!(bake.plan.solve(), bake_core::Solve::Iterative(_)) {
         let iterations = solution.iterations.iter().max().copied().unwrap_or(0);
         hardness += &format!(", {iterations} iterations");
     }
@@ -53,7 +53,7 @@ pub(crate) fn line(
         job.output.display(),
         scene.polygons.len(),
         bake.mesh.elements.len(),
-        bake.transport.kind.name(),
+        bake.plan.transport().kind.name(),
         bake.counts.pairs_evaluated,
         r[0],
         r[1],

@@ -28,10 +28,14 @@
 
 use crate::{check_inputs, row_sums, Operator, SolveError, BANDS};
 
-/// Per-band power balance of a solution (see the module docs for the formulas).
+/// Per-band power balance of a solution (see the module docs for the formulas); the bake
+/// report's `energy` object.
 #[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct EnergyBalance {
-    /// `Σ A_i H⁰_i`: external light (punctual lights) arriving at the elements.
+    /// `Σ A_i H⁰_i`: external light (punctual lights) arriving at the elements (absent in
+    /// older reports: 0).
+    #[cfg_attr(feature = "serde", serde(default))]
     pub delivered: [f64; BANDS],
     /// `Σ A_i e_i`.
     pub emitted: [f64; BANDS],

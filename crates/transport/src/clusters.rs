@@ -23,8 +23,9 @@
 //! This module is not the cluster transport of part 2 (links between clusters carrying light):
 //! every light-carrying link still joins two polygon hierarchies.
 
-use form_factor::{Occluders, Surface};
+use form_factor::Surface;
 use glam::DVec3;
+use visibility::Occluders;
 use visibility::{pair_seed, SplitMix64};
 
 /// Most shadow rays one cluster pair gets per direction; a pair that would need more is split.

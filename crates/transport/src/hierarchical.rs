@@ -63,8 +63,7 @@
 //! shadow rays are seeded by its node pair, passes visit links in a fixed order).
 
 use form_factor::{
-    screened_pair, surface_screen, ContourOptions, Estimator, Method, Occluders, PairKind,
-    PairScreen, Surface,
+    screened_pair, surface_screen, ContourOptions, Estimator, Method, PairKind, PairScreen, Surface,
 };
 use glam::DVec3;
 use mesher::ElementMesh;
@@ -72,6 +71,7 @@ use rayon::prelude::*;
 use scene::Polygon;
 use solver::{IterativeOptions, Operator, SolveError, BANDS};
 use std::sync::atomic::{AtomicU64, Ordering};
+use visibility::Occluders;
 use visibility::{pair_seed, Patch};
 
 use crate::clusters::{self, Clusters, Weights};

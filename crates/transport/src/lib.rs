@@ -11,13 +11,21 @@
 //!   links between the coarsest node pairs whose estimated error is small enough, with
 //!   push–pull through the trees. O(n) links for a fixed error instead of n² pairs.
 //!
+//! [`build`] makes either from one [`Problem`] and its [`Options`]; the caller then asks the
+//! [`BuiltOperator`] what it can do rather than matching on the kind.
+//!
 //! This crate is not the solver (that is pure linear algebra in `solver`) and does not choose
 //! between the implementations (the `bake` library does); it knows elements only through the
 //! mesher's grids, and form factors and visibility only through their crates' APIs.
 
+mod build;
 mod clusters;
 pub mod hierarchical;
 
+pub use build::{
+    build, hierarchical, Built, BuiltOperator, DenseOptions, Options, Problem, Progress, Stats,
+    View,
+};
 pub use hierarchical::{
     HierarchicalOptions, HierarchicalStats, HierarchicalTransport, LinkError, LinkProgress,
     LinksFileError,

@@ -6,11 +6,12 @@
 //! swapped).
 
 use bake_transport::{HierarchicalOptions, HierarchicalTransport};
-use form_factor::{ContourOptions, Estimator, Occluders};
+use form_factor::{ContourOptions, Estimator};
 use glam::DVec3;
 use importer::{Origin, Polygon, Side};
 use mesher::Subdivision;
 use solver::Operator;
+use visibility::Occluders;
 
 fn polygon(mut vertices: Vec<DVec3>, inside: DVec3) -> Polygon {
     let mut n = (vertices[1] - vertices[0])

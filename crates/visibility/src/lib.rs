@@ -537,12 +537,14 @@ pub struct OccludablePairs {
     polygons: usize,
 }
 
-/// Which effects a scene calls for, with the reason, for the bake report.
-#[derive(Clone, Debug, PartialEq)]
+/// Which effects a scene calls for, with the reason: the bake report's `effects` object.
+#[derive(Clone, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Effects {
     /// Whether some element pairs need shadow rays.
     pub occlusion: bool,
     /// One sentence saying why.
+    #[cfg_attr(feature = "serde", serde(rename = "occlusion_reason"))]
     pub reason: String,
 }
 

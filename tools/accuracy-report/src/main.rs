@@ -212,7 +212,7 @@ fn setting(group: &str, label: String, subdivision: Subdivision, estimator: Esti
         subdivision,
         estimator,
         contour: contour(),
-        samples: form_factor::visibility::DEFAULT_SAMPLES,
+        samples: visibility::DEFAULT_SAMPLES,
         solve: Solve::Direct,
         max_error: None,
         refine: None,

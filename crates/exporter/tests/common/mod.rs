@@ -339,3 +339,20 @@ pub fn expected_smoothed(mesh: &ElementMesh, values: &[[f64; 3]]) -> Vec<[f64; 3
         })
         .collect()
 }
+
+/// An element of node 2's instance of quad A (polygon 4).
+pub const ELEMENT: usize = 8;
+
+/// The error's message, asserting it is a one-line `NonFinite` (the including test file names
+/// the exporter's `ExportError`: the crate is `bake_exporter` in its own tests, `exporter`
+/// in the job's).
+pub fn non_finite(result: Result<(), super::ExportError>) -> String {
+    let error = result.expect_err("a non-finite value is refused");
+    assert!(
+        matches!(error, super::ExportError::NonFinite { .. }),
+        "{error:?}"
+    );
+    let message = error.to_string();
+    assert!(!message.contains('\n'), "{message}");
+    message
+}

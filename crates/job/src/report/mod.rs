@@ -4,17 +4,21 @@
 //!
 //! Keys appear in struct field order; floats are written so they read back exactly.
 //!
-//! Typical use by the CLI:
-//! ```text
-//! let mut report = Report::new(input, &scene, &mesh, &radiosity, solver)?;
-//! report.options = serde_json::to_value(&options)?;
-//! report.counts.pairs_evaluated = pairs;
-//! report.energy = Some(energy);
-//! report.timings.insert("solve".into(), seconds);
-//! write_report(path, &report)?;
-//! ```
+//! The bake's own result values are the report's objects, defined once where they are
+//! computed: `counts` is [`bake_core::Counts`], `energy` [`bake_core::EnergyBalance`],
+//! `effects` [`bake_core::Effects`], `transport` [`bake_core::TransportChoice`], `accuracy`
+//! [`bake_core::Accuracy`], `refinement` [`bake_core::refine::Refinement`] and each light's
+//! counts [`bake_core::LightStats`]. This module adds what only the report has (the input,
+//! the options, timings, the polygon and element lists) and writes and reads the file; the
+//! job fills it from a finished bake (`build.rs`).
 
-use crate::{ExportError, OutputSet};
+mod build;
+
+pub(crate) use build::{Baked, Stages};
+
+use bake_core::refine::Refinement;
+use bake_core::{Accuracy, Counts, Effects, EnergyBalance, LightStats, TransportChoice};
+use exporter::{ExportError, OutputSet};
 use mesher::ElementMesh;
 use scene::{Scene, Side};
 use serde::{Deserialize, Serialize};
@@ -44,23 +48,23 @@ pub struct Report {
     pub peak_rss_mib: BTreeMap<String, f64>,
     pub solver: SolverInfo,
     /// Power balance of the solution; `None` until the caller sets it.
-    pub energy: Option<EnergyInfo>,
+    pub energy: Option<EnergyBalance>,
     /// The effects the scene called for (absent in older reports).
     #[serde(default)]
     pub effects: Effects,
     /// The light transport used and why (absent in older reports).
     #[serde(default)]
-    pub transport: TransportInfo,
+    pub transport: TransportChoice,
     /// The punctual lights the bake used (absent in older reports).
     #[serde(default)]
     pub lights: Vec<LightEntry>,
     /// The target error of `b`, the form-factor tolerance it chose and the bound the solve
     /// leaves (absent in older reports).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub accuracy: Option<AccuracyInfo>,
+    pub accuracy: Option<Accuracy>,
     /// What refinement below the element grid did (absent in older reports).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub refinement: Option<RefinementInfo>,
+    pub refinement: Option<Refinement>,
     pub warnings: Vec<String>,
     pub polygons: Vec<PolygonEntry>,
     /// Which per-element data follow (absent in older reports: all).
@@ -133,86 +137,6 @@ impl ElementSummary {
     }
 }
 
-#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Counts {
-    pub polygons: usize,
-    pub elements: usize,
-    /// Element pairs whose form factor was computed.
-    pub pairs_evaluated: u64,
-    pub degenerate_dropped: usize,
-    pub quads_merged: usize,
-    pub primitives_skipped: usize,
-    pub ngons_split: usize,
-    pub faces_read: usize,
-    /// Faces dropped as duplicates of an earlier face (absent in older reports: 0).
-    #[serde(default)]
-    pub duplicates_dropped: usize,
-    /// Polygons dropped because a polygon of another primitive or node has the same corners
-    /// and facing (absent in older reports: 0).
-    #[serde(default)]
-    pub coincident_dropped: usize,
-    /// Faces wound opposite to their neighbours, kept as authored (absent in older
-    /// reports: 0).
-    #[serde(default)]
-    pub against_winding: usize,
-    /// Element pairs facing each other whose visibility was decided (absent in older
-    /// reports: 0).
-    #[serde(default)]
-    pub pairs_tested: u64,
-    /// Of those, pairs some polygon may come between: shadow rays were cast for them.
-    #[serde(default)]
-    pub pairs_occludable: u64,
-    /// Shadow rays cast.
-    #[serde(default)]
-    pub rays_cast: u64,
-    /// Form-factor kernel evaluations (ln r terms of the contour integral, edge terms of
-    /// point-to-polygon, centroid kernels of point-to-point; absent in older reports: 0).
-    #[serde(default)]
-    pub kernel_evaluations: u64,
-    /// Integrated pairs computed by the contour integral, point-to-polygon and point-to-point.
-    #[serde(default)]
-    pub pairs_contour: u64,
-    #[serde(default)]
-    pub pairs_point_polygon: u64,
-    #[serde(default)]
-    pub pairs_point_point: u64,
-    /// Hierarchical transport: links between nodes (0 for the dense transport).
-    #[serde(default)]
-    pub links: u64,
-    /// Hierarchical transport: nodes of the polygons' hierarchies, leaves (elements) included.
-    #[serde(default)]
-    pub nodes: u64,
-    /// Hierarchical transport: link refinement passes (each followed by a solve).
-    #[serde(default)]
-    pub refinement_passes: u32,
-    /// Hierarchical transport: links whose every shadow ray was blocked (kept while linking,
-    /// carrying nothing).
-    #[serde(default)]
-    pub blocked_links: u64,
-    /// Hierarchical transport: polygon pairs the cluster descent left for linking, and the
-    /// cluster pairs it dropped because every shadow ray between them was blocked.
-    #[serde(default)]
-    pub polygon_pairs: u64,
-    #[serde(default)]
-    pub cluster_pairs_dropped: u64,
-}
-
-/// The light transport a bake used (`dense` or `hierarchical`) and why.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub struct TransportInfo {
-    pub kind: String,
-    pub reason: String,
-}
-
-/// Which physical effects the scene called for, and why.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Effects {
-    /// Whether any element pair can be hidden by a third polygon (shadow rays needed).
-    pub occlusion: bool,
-    /// One sentence saying why.
-    pub occlusion_reason: String,
-}
-
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SolverMethod {
@@ -243,88 +167,6 @@ pub struct SolverInfo {
     pub iterations: [u32; 3],
 }
 
-/// `--refine` and what it did: solves on refined meshes, elements before and after, and the
-/// vertices copied at shadow edges so smoothing does not cross them.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct RefinementInfo {
-    pub enabled: bool,
-    /// Solves after the first, each on a refined mesh.
-    pub passes: u32,
-    pub elements_before: usize,
-    pub elements_after: usize,
-    /// The element budget it ran under (`--max-elements`, or its default for the scene).
-    #[serde(default)]
-    pub budget: u64,
-    /// Elements split over all passes.
-    pub split: usize,
-    /// Elements still above the target when it stopped.
-    pub above_target: usize,
-    pub discontinuity_vertices: usize,
-    pub discontinuity_edges: usize,
-    /// Why it stopped.
-    pub stopped: String,
-}
-
-/// `--max-error` and what it led to.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct AccuracyInfo {
-    /// Target relative error of `b`.
-    pub max_error: f64,
-    /// Largest reflectance of any element in any band.
-    pub rho_max: f64,
-    /// The per-pair form-factor tolerance the target chose (`null` when an explicit
-    /// estimator or `--ff-tolerance` set it, or under the hierarchical transport).
-    pub ff_tolerance: Option<f64>,
-    /// The accuracy of `F`'s row sums the estimator states (what the solver was told).
-    pub row_sum_accuracy: f64,
-    /// A-priori bound on `cond_∞(I − ρF)`: `(1 + ρ_max(1 + a))/(1 − ρ_max(1 + a))` for that
-    /// accuracy `a` (`null`: unbounded, ρ_max = 1).
-    pub condition_bound: Option<f64>,
-    /// Per band after the solve: the condition estimate × ρ_max × the row-sum accuracy, the
-    /// relative error of `b` the form factors' accuracy can cause (`null` when the band was
-    /// not solved as a linear system).
-    pub error_bound: [Option<f64>; 3],
-    /// Dense transport: the form factors' row sums before and after rows past 1 were scaled
-    /// to 1 (absent on other transports and in older reports).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub row_sums: Option<RowSumsInfo>,
-    /// The elements' error estimates summarised (absent in older reports).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub error: Option<ErrorSummary>,
-}
-
-/// The dense form factors' row sums Σ_j F_ij: no element sends more than all its light, so
-/// rows past 1 (coincident or interpenetrating surfaces seen twice) were scaled to 1,
-/// reciprocity kept.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct RowSumsInfo {
-    /// The largest row sum as integrated.
-    pub largest_before: f64,
-    /// The largest row sum the solver was given.
-    pub largest_after: f64,
-    /// Rows scaled to 1.
-    pub scaled: usize,
-    /// Of those, rows past 1 + 5% (or `row_sum_accuracy`, when larger): surfaces seen
-    /// twice, not integration or sampling error (a warning names their polygons).
-    pub seen_twice: usize,
-}
-
-/// The per-element error estimates of a bake, per band: largest, area-weighted RMS, where the
-/// largest is, and the largest of each part.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct ErrorSummary {
-    pub max: [f64; 3],
-    pub rms: [f64; 3],
-    /// Per band: the element with the largest estimate and its centroid.
-    pub max_element: [usize; 3],
-    pub max_centroid: [[f64; 3]; 3],
-    /// Per band: the largest discretisation, form-factor, visibility and solver part.
-    pub max_discretisation: [f64; 3],
-    pub max_form_factors: [f64; 3],
-    pub max_visibility: [f64; 3],
-    pub max_solver: [f64; 3],
-}
-
 /// One punctual light the bake used, in world space, and what its direct light took.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LightEntry {
@@ -345,36 +187,12 @@ pub struct LightEntry {
     pub inner_cone_angle: Option<f64>,
     pub outer_cone_angle: Option<f64>,
     /// Elements it lights, elements some polygon may shadow from it, shadow rays cast,
-    /// elements whose falloff was integrated over sub-cells, elements clipped exactly.
-    pub elements_lit: u64,
-    pub elements_shadowed: u64,
-    pub rays_cast: u64,
-    pub elements_sampled: u64,
-    pub elements_clipped: u64,
+    /// elements whose falloff was integrated over sub-cells, elements clipped exactly (the
+    /// direct-light pass's own counts, as keys of this object).
+    #[serde(flatten)]
+    pub stats: LightStats,
     /// `Σ A_i E_i / π` per band: what it delivered, in the energy unit.
     pub delivered: [f64; 3],
-}
-
-/// Conservation of energy per band, in the report's power unit (intensity × area):
-/// delivered + emitted = absorbed + escaped for a solved system with reciprocal form factors.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct EnergyInfo {
-    /// `Σ A_i E_i / π`: what the punctual lights delivered (E: mean illuminance; absent in
-    /// older reports: 0).
-    #[serde(default)]
-    pub delivered: [f64; 3],
-    /// `Σ A_i e_i`.
-    pub emitted: [f64; 3],
-    /// `Σ A_i (1 − ρ_i) (H_i + E_i / π)`, `H_i = Σ_j F_ij b_j` the interreflected light
-    /// arriving at element i (the lights' first hit included).
-    pub absorbed: [f64; 3],
-    /// `Σ A_i b_i (1 − Σ_j F_ij)`: light leaving through openings (≈ 0 in a closed scene).
-    pub escaped: [f64; 3],
-    /// `|delivered + emitted − absorbed − escaped| / (delivered + emitted)`, absolute when
-    /// nothing enters.
-    pub imbalance: [f64; 3],
-    /// Whether each band's imbalance is relative (to the emitted power) rather than absolute.
-    pub imbalance_relative: [bool; 3],
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -434,8 +252,8 @@ pub struct ElementEntry {
 
 impl Report {
     /// A report with the scene's counts, warnings, polygons and elements filled in.
-    /// `options` is `{}`, `timings` is empty, `energy` is `None` and `counts.pairs_evaluated`
-    /// is 0: the caller sets them.
+    /// `options` is `{}`, `timings` is empty, `energy` is `None` and `counts` holds only the
+    /// scene's and the mesh's sizes: the caller sets them from the bake.
     pub fn new(
         input: &Path,
         scene: &Scene,
@@ -447,13 +265,13 @@ impl Report {
             schema_version: SCHEMA_VERSION,
             input: input.to_string_lossy().into_owned(),
             options: serde_json::Value::Object(serde_json::Map::new()),
-            counts: Counts::new(scene, mesh, 0),
+            counts: Counts::default().with_scene(scene, mesh),
             timings: BTreeMap::new(),
             peak_rss_mib: BTreeMap::new(),
             solver,
             energy: None,
             effects: Effects::default(),
-            transport: TransportInfo::default(),
+            transport: TransportChoice::default(),
             lights: Vec::new(),
             accuracy: None,
             refinement: None,
@@ -539,28 +357,6 @@ impl Report {
     }
 }
 
-impl Counts {
-    /// Polygon and element counts of the mesh, the importer's statistics, and
-    /// `pairs_evaluated` from the form-factor stage.
-    pub fn new(scene: &Scene, mesh: &ElementMesh, pairs_evaluated: u64) -> Counts {
-        let stats = &scene.stats;
-        Counts {
-            polygons: scene.polygons.len(),
-            elements: mesh.elements.len(),
-            pairs_evaluated,
-            degenerate_dropped: stats.degenerate_dropped,
-            quads_merged: stats.quads_merged,
-            primitives_skipped: stats.primitives_skipped,
-            ngons_split: stats.ngons_split,
-            faces_read: stats.faces_read,
-            duplicates_dropped: stats.duplicates_dropped,
-            coincident_dropped: stats.coincident_dropped,
-            against_winding: stats.against_winding,
-            ..Counts::default()
-        }
-    }
-}
-
 /// Writes `report` as pretty JSON to `path`, atomically (temporary file, then rename).
 ///
 /// JSON has no NaN or infinity (`serde_json` would write `null`): every number is checked
@@ -582,7 +378,7 @@ pub fn stage_report(set: &mut OutputSet, path: &Path, report: &Report) -> Result
         message: e.to_string(),
     })?;
     json.push(b'\n');
-    set.stage(path, &json)
+    set.stage_with(path, |w| w.write_all(&json))
 }
 
 /// Every float of the report must be finite.

@@ -1,12 +1,9 @@
-//! The bake report (`--report`): the exporter's report filled from the bake's result, the
-//! job's options, the lightmap and each stage's time and peak memory.
+//! The bake report (`--report`) filled from the bake's result, the job's options, the
+//! lightmap and each stage's time and peak memory.
 
+use super::{ElementsIncluded, LightEntry, Report, SolverInfo, SolverMethod};
 use crate::{internal, Events, Exposure, Failure, Job, Target, Warnings, REPORT_ELEMENTS_LIMIT};
 use anyhow::Context;
-use exporter::report::{
-    AccuracyInfo, Effects, ElementsIncluded, EnergyInfo, ErrorSummary, LightEntry, Report,
-    SolverInfo, SolverMethod, TransportInfo,
-};
 use lightmap::UvMode;
 use mesher::Shading;
 use std::collections::BTreeMap;
@@ -45,7 +42,6 @@ impl Stages {
 pub(crate) struct Baked<'a> {
     pub job: &'a Job,
     pub scene: &'a importer::Scene,
-    pub settings: &'a bake_core::Settings,
     pub bake: &'a bake_core::Bake,
     pub lightmap: Option<&'a lightmap::Lightmap>,
     pub exposure: f64,
@@ -91,26 +87,12 @@ impl Baked<'_> {
             entry.error = bake.error.get(i).map(|p| p.total());
         }
         report.lights = light_entries(scene, bake);
-        self.fill_counts(&mut report);
-        report.effects = Effects {
-            occlusion: bake.effects.occlusion,
-            occlusion_reason: bake.effects.reason.clone(),
-        };
-        report.transport = TransportInfo {
-            kind: bake.transport.kind.name().to_string(),
-            reason: bake.transport.reason.clone(),
-        };
-        let energy = &bake.energy;
-        report.energy = Some(EnergyInfo {
-            delivered: energy.delivered,
-            emitted: energy.emitted,
-            absorbed: energy.absorbed,
-            escaped: energy.escaped,
-            imbalance: energy.imbalance,
-            imbalance_relative: energy.imbalance_relative,
-        });
-        report.accuracy = Some(self.accuracy());
-        report.refinement = Some(self.refinement());
+        report.counts = bake.counts;
+        report.effects = bake.effects.clone();
+        report.transport = bake.plan.transport().clone();
+        report.energy = Some(bake.energy.clone());
+        report.accuracy = Some(bake.accuracy);
+        report.refinement = Some(bake.refinement.clone());
         report.warnings = warnings.lines.clone();
         stages
             .timings
@@ -123,12 +105,12 @@ impl Baked<'_> {
     fn solver(&self) -> SolverInfo {
         let (bake, solution) = (self.bake, &self.bake.solution);
         SolverInfo {
-            method: match bake.solve {
+            method: match bake.plan.solve() {
                 bake_core::Solve::Direct => SolverMethod::Direct,
                 bake_core::Solve::Iterative(_) => SolverMethod::Iterative,
                 bake_core::Solve::Bounces(_) => SolverMethod::Bounces,
             },
-            bounces: match bake.solve {
+            bounces: match bake.plan.solve() {
                 bake_core::Solve::Bounces(k) => Some(k),
                 _ => None,
             },
@@ -140,64 +122,11 @@ impl Baked<'_> {
         }
     }
 
-    fn fill_counts(&self, report: &mut Report) {
-        let counts = &self.bake.counts;
-        report.counts.pairs_evaluated = counts.pairs_evaluated;
-        report.counts.pairs_tested = counts.pairs_tested;
-        report.counts.pairs_occludable = counts.pairs_occludable;
-        report.counts.rays_cast = counts.rays_cast;
-        report.counts.kernel_evaluations = counts.kernel_evaluations;
-        report.counts.pairs_contour = counts.pairs_contour;
-        report.counts.pairs_point_polygon = counts.pairs_point_polygon;
-        report.counts.pairs_point_point = counts.pairs_point_point;
-        report.counts.links = counts.links;
-        report.counts.nodes = counts.nodes;
-        report.counts.refinement_passes = counts.passes;
-        report.counts.blocked_links = counts.blocked_links;
-        report.counts.polygon_pairs = counts.polygon_pairs;
-        report.counts.cluster_pairs_dropped = counts.clusters_dropped;
-    }
-
-    fn accuracy(&self) -> AccuracyInfo {
-        let a = &self.bake.accuracy;
-        AccuracyInfo {
-            max_error: a.max_error,
-            rho_max: a.rho_max,
-            ff_tolerance: a.chosen_tolerance,
-            row_sum_accuracy: a.row_sum_accuracy,
-            condition_bound: Some(a.condition_bound).filter(|c| c.is_finite()),
-            error_bound: a.error_bound.map(|b| b.filter(|b| b.is_finite())),
-            row_sums: a.row_sums.map(|r| exporter::report::RowSumsInfo {
-                largest_before: r.largest_before,
-                largest_after: r.largest_after,
-                scaled: r.scaled,
-                seen_twice: r.seen_twice,
-            }),
-            error: Some(error_summary(&self.bake.mesh, &self.bake.error)),
-        }
-    }
-
-    fn refinement(&self) -> exporter::report::RefinementInfo {
-        let r = &self.bake.refinement;
-        exporter::report::RefinementInfo {
-            enabled: r.enabled,
-            passes: r.passes,
-            elements_before: r.elements_before,
-            elements_after: r.elements_after,
-            budget: r.budget,
-            split: r.split,
-            above_target: r.above_target,
-            discontinuity_vertices: r.discontinuity_vertices,
-            discontinuity_edges: r.discontinuity_edges,
-            stopped: r.stopped.clone(),
-        }
-    }
-
     /// The options as resolved for this bake (defaults filled in): the bake's settings plus
     /// the job's output options.
     fn options_json(&self) -> serde_json::Value {
         let job = self.job;
-        let mut options = self.bake.options_json(self.settings);
+        let mut options = self.bake.plan.options_json();
         let output = serde_json::json!({
             "shading": match job.shading { Shading::Smooth => "smooth", Shading::Flat => "flat" },
             "exposure": self.exposure,
@@ -274,11 +203,7 @@ fn light_entries(scene: &importer::Scene, bake: &bake_core::Bake) -> Vec<LightEn
                 range: light.range,
                 inner_cone_angle: inner,
                 outer_cone_angle: outer,
-                elements_lit: stats.elements_lit,
-                elements_shadowed: stats.elements_shadowed,
-                rays_cast: stats.rays_cast,
-                elements_sampled: stats.elements_sampled,
-                elements_clipped: stats.elements_clipped,
+                stats,
                 delivered: light
                     .band_intensity()
                     .map(|i| i * stats.flux / std::f64::consts::PI),
@@ -304,42 +229,6 @@ fn report_elements(
         ),
         None => (ElementsIncluded::All, None),
     }
-}
-
-/// The report's summary of the per-element error estimates `parts` (one per element of
-/// `mesh`).
-fn error_summary(mesh: &mesher::ElementMesh, parts: &[bake_core::error::Parts]) -> ErrorSummary {
-    let mut s = ErrorSummary {
-        max: [0.0; 3],
-        rms: [0.0; 3],
-        max_element: [0; 3],
-        max_centroid: [[0.0; 3]; 3],
-        max_discretisation: [0.0; 3],
-        max_form_factors: [0.0; 3],
-        max_visibility: [0.0; 3],
-        max_solver: [0.0; 3],
-    };
-    let mut area = 0.0;
-    for (i, (element, p)) in mesh.elements.iter().zip(parts).enumerate() {
-        let total = p.total();
-        area += element.area;
-        for (c, &t) in total.iter().enumerate() {
-            if t > s.max[c] {
-                s.max[c] = t;
-                s.max_element[c] = i;
-                s.max_centroid[c] = element.centroid.to_array();
-            }
-            s.rms[c] += element.area * t * t;
-            s.max_discretisation[c] = s.max_discretisation[c].max(p.discretisation[c]);
-            s.max_form_factors[c] = s.max_form_factors[c].max(p.form_factors[c]);
-            s.max_visibility[c] = s.max_visibility[c].max(p.visibility[c]);
-            s.max_solver[c] = s.max_solver[c].max(p.solver[c]);
-        }
-    }
-    if area > 0.0 {
-        s.rms = s.rms.map(|x| (x / area).sqrt());
-    }
-    s
 }
 
 #[cfg(test)]

@@ -1,14 +1,17 @@
-//! The bake report: contents, key order, exact float round trip, atomic writes.
+//! The bake report: contents, key order, exact float round trip, atomic writes, no NaN or
+//! infinity written.
 
+// The exporter's hand-built sample bake (one fixture for both crates' tests).
+#[path = "../../exporter/tests/common/mod.rs"]
 mod common;
 
-use bake_exporter::report::{
-    read_report, write_report, Counts, ElementsIncluded, EnergyInfo, Report, SideName, SolverInfo,
-    SolverMethod,
+use bake_core::{Counts, EnergyBalance};
+use bake_job::report::{
+    read_report, write_report, ElementsIncluded, Report, SideName, SolverInfo, SolverMethod,
 };
-use bake_exporter::ExportError;
 use bake_testkit::file_names;
-use common::sample_bake;
+use common::{non_finite, sample_bake, ELEMENT};
+use exporter::ExportError;
 use std::path::Path;
 
 fn solver() -> SolverInfo {
@@ -38,7 +41,7 @@ fn report() -> Report {
     .expect("a report");
     report.options = serde_json::json!({"subdivision": 2, "exposure": 0.9});
     report.counts.pairs_evaluated = 91;
-    report.energy = Some(EnergyInfo {
+    report.energy = Some(EnergyBalance {
         delivered: [0.0; 3],
         emitted: [1.0, 0.0, 2.5],
         absorbed: [0.7, 0.0, 2.5 - 1e-12],
@@ -229,4 +232,73 @@ fn a_summary_report_keeps_the_range_and_mean_of_b_and_drops_the_list() {
     all.keep_elements(ElementsIncluded::All);
     assert_eq!(all.elements, full.elements);
     assert!(all.element_summary.is_some());
+}
+
+fn report_with(radiosity: &[[f64; 3]]) -> Report {
+    let fixture = sample_bake();
+    let solver = SolverInfo {
+        method: SolverMethod::Direct,
+        bounces: None,
+        residual: [0.0; 3],
+        residual_relative: [false; 3],
+        factorizations: 1,
+        condition: [Some(3.0), None, Some(2.5)],
+        iterations: [0; 3],
+    };
+    Report::new(
+        Path::new("in.gltf"),
+        &fixture.scene,
+        &fixture.mesh,
+        radiosity,
+        solver,
+    )
+    .expect("a report")
+}
+
+#[test]
+fn report_with_nan_is_refused_not_written_as_null() {
+    let fixture = sample_bake();
+    let mut radiosity = fixture.radiosity.clone();
+    radiosity[ELEMENT][1] = f64::NAN;
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let path = dir.path().join("report.json");
+
+    let message = non_finite(write_report(&path, &report_with(&radiosity)));
+    let polygon = fixture.mesh.elements[ELEMENT].polygon;
+    for part in [
+        format!("element {ELEMENT} (polygon {polygon}: node "),
+        "b [".into(),
+    ] {
+        assert!(message.contains(&part), "{part:?} in {message}");
+    }
+
+    let mut report = report_with(&fixture.radiosity);
+    report.timings.insert("solve".into(), f64::INFINITY);
+    let message = non_finite(write_report(&path, &report));
+    assert!(message.contains("timing \"solve\""), "{message}");
+
+    let mut report = report_with(&fixture.radiosity);
+    report.solver.residual[2] = f64::NAN;
+    let message = non_finite(write_report(&path, &report));
+    assert!(message.contains("residual"), "{message}");
+
+    let mut report = report_with(&fixture.radiosity);
+    report.solver.condition[0] = Some(f64::INFINITY);
+    let message = non_finite(write_report(&path, &report));
+    assert!(message.contains("condition"), "{message}");
+
+    let mut report = report_with(&fixture.radiosity);
+    report.energy = Some(EnergyBalance {
+        delivered: [0.0; 3],
+        emitted: [1.0; 3],
+        absorbed: [0.5, f64::NAN, 0.5],
+        escaped: [0.5; 3],
+        imbalance: [0.0; 3],
+        imbalance_relative: [true; 3],
+    });
+    let message = non_finite(write_report(&path, &report));
+    assert!(message.contains("energy absorbed"), "{message}");
+
+    assert!(file_names(dir.path()).is_empty(), "nothing written");
+    write_report(&path, &report_with(&fixture.radiosity)).expect("a finite report is written");
 }

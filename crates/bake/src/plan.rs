@@ -1,0 +1,202 @@
+//! One solve's plan: which transport and why, the solver, the form-factor estimator and the
+//! chosen transport's build options (tolerances, samples, the link budget), decided from the
+//! resolved [`Settings`] and a [`SceneSummary`] before anything is built. The plan is what a
+//! bake reports as its `options` ([`Plan::options_json`]), and what the transport stage reads:
+//! `run_mesh` asks it, instead of matching the settings against the transport kind.
+//!
+//! A refining bake makes one plan per solve (the element count changes).
+
+use crate::{
+    accuracy, check_memory, BakeError, Settings, Solve, TransportChoice, TransportKind,
+    BRIGHT_AMPLIFICATION, BRIGHT_DENSE_MAX, DENSE_CROSSOVER, LINK_PASSES, ROW_SUM_WARNING_MARGIN,
+};
+use form_factor::Estimator;
+use transport::{DenseOptions, HierarchicalOptions};
+
+/// What a plan needs to know of the scene before meshing: sizes and the reflectance bound.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneSummary {
+    /// Elements the mesh will have.
+    pub elements: u64,
+    /// The largest reflectance any surface can have (textures included), after
+    /// `--max-reflectance`.
+    pub rho_bound: f64,
+    /// Distinct reflectance bands (1 for a grey scene): LU copies a direct solve needs.
+    pub bands: usize,
+}
+
+/// One solve's plan (see the module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    settings: Settings,
+    transport: TransportChoice,
+    solve: Solve,
+    estimator: Estimator,
+}
+
+impl Plan {
+    /// The plan for `scene` under `settings`: the transport and why, the solve, and a memory
+    /// check of both. A warning goes to `warnings` when the hierarchy's link tolerance cannot
+    /// promise `--max-error` on so bright a scene.
+    pub(crate) fn new(
+        settings: &Settings,
+        scene: &SceneSummary,
+        warnings: &mut Vec<String>,
+    ) -> Result<Plan, BakeError> {
+        let rho_bound = scene.rho_bound;
+        let transport = choose_transport(
+            settings,
+            usize::try_from(scene.elements).unwrap_or(usize::MAX),
+            rho_bound,
+        );
+        let amplification = accuracy::condition_bound(rho_bound, 0.0);
+        if transport.kind == TransportKind::Hierarchical && amplification >= BRIGHT_AMPLIFICATION {
+            warnings.push(format!(
+                "reflectances up to {rho_bound} amplify errors up to {amplification:.0}x: the \
+                 hierarchical transport's link tolerance {} may leave b far from --max-error \
+                 {:e} (a smaller --link-tolerance, or --transport dense where memory allows, \
+                 tightens it)",
+                settings.link_tolerance, settings.max_error
+            ));
+        }
+        let solve = settings.solve(transport.kind);
+        check_memory(scene.elements, transport.kind, solve, scene.bands)?;
+        Ok(Plan {
+            settings: settings.clone(),
+            transport,
+            solve,
+            estimator: settings.estimator,
+        })
+    }
+
+    /// The form-factor estimator once the elements' largest reflectance is known: the dense
+    /// transport's `auto` tolerance from the target and `rho_max`; the hierarchy's as set.
+    pub(crate) fn with_rho_max(self, rho_max: f64) -> Plan {
+        let estimator = match self.transport.kind {
+            TransportKind::Hierarchical => self.settings.estimator,
+            _ => self.settings.dense_estimator(rho_max),
+        };
+        Plan { estimator, ..self }
+    }
+
+    /// Nothing emits or reflects a light: no transport is built (said in the reason).
+    pub(crate) fn not_built(&mut self) {
+        self.transport.reason = format!(
+            "{}; not built: nothing emits or reflects direct light, so b = 0 exactly",
+            self.transport.reason
+        );
+    }
+
+    /// The transport and why.
+    pub fn transport(&self) -> &TransportChoice {
+        &self.transport
+    }
+
+    /// The solve.
+    pub fn solve(&self) -> Solve {
+        self.solve
+    }
+
+    /// The form-factor estimator (under the dense transport with `auto`, its tolerance is the
+    /// one the target chose).
+    pub fn estimator(&self) -> Estimator {
+        self.estimator
+    }
+
+    /// The settings the plan was made from.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// The dense transport's build options.
+    pub(crate) fn dense_options(&self) -> DenseOptions {
+        DenseOptions {
+            estimator: self.estimator,
+            contour: self.settings.contour,
+            samples: self.settings.visibility_samples,
+            row_sum_margin: self
+                .estimator
+                .row_sum_accuracy()
+                .max(ROW_SUM_WARNING_MARGIN),
+        }
+    }
+
+    /// The hierarchical transport's build options, keeping at most `max_links` links.
+    pub(crate) fn hierarchical_options(&self, max_links: u64) -> HierarchicalOptions {
+        HierarchicalOptions {
+            link_tolerance: self.settings.link_tolerance,
+            samples: self.settings.link_samples,
+            estimator: self.settings.estimator,
+            contour: self.settings.contour,
+            passes: LINK_PASSES,
+            max_links,
+        }
+    }
+
+    /// The report's `options`: the settings as resolved, with the transport and estimator
+    /// this plan chose.
+    pub fn options_json(&self) -> serde_json::Value {
+        self.settings.to_json(self.transport.kind, self.estimator)
+    }
+}
+
+/// Which transport `settings` asks for on a scene of `n` elements whose reflectances are at
+/// most `rho_bound`, and why.
+fn choose_transport(settings: &Settings, n: usize, rho_bound: f64) -> TransportChoice {
+    // What the hierarchy's links could cost b: their tolerance amplified by the a-priori
+    // condition bound, against the target.
+    let amplification = accuracy::condition_bound(rho_bound, 0.0);
+    let amplified = amplification * rho_bound * settings.link_tolerance;
+    let bright = amplification >= BRIGHT_AMPLIFICATION && amplified > settings.max_error;
+    if let Some(path) = &settings.load_links {
+        return TransportChoice {
+            kind: TransportKind::Hierarchical,
+            reason: format!("links loaded from {}", path.display()),
+        };
+    }
+    match settings.transport {
+        TransportKind::Dense => TransportChoice {
+            kind: TransportKind::Dense,
+            reason: "--transport dense".into(),
+        },
+        TransportKind::Hierarchical => TransportChoice {
+            kind: TransportKind::Hierarchical,
+            reason: "--transport hierarchical".into(),
+        },
+        TransportKind::Auto if settings.save_links => TransportChoice {
+            kind: TransportKind::Hierarchical,
+            reason: "--save-links: the links are the hierarchical transport's".into(),
+        },
+        TransportKind::Auto if settings.direct_requested => TransportChoice {
+            kind: TransportKind::Dense,
+            reason: "--solver direct needs the dense transport".into(),
+        },
+        TransportKind::Auto if n > DENSE_CROSSOVER && n <= BRIGHT_DENSE_MAX && bright => {
+            TransportChoice {
+                kind: TransportKind::Dense,
+                reason: format!(
+                    "{n} elements, more than the crossover of {DENSE_CROSSOVER}, but reflectances \
+                     up to {rho_bound} amplify errors up to {:.0}×: the hierarchy's link \
+                     tolerance {} could cost b {amplified:.1e}, more than --max-error {:e}; the \
+                     dense transport meets it (up to {BRIGHT_DENSE_MAX} elements)",
+                    amplification, settings.link_tolerance, settings.max_error
+                ),
+            }
+        }
+        TransportKind::Auto if n <= DENSE_CROSSOVER => TransportChoice {
+            kind: TransportKind::Dense,
+            reason: format!(
+                "{n} elements, at most the crossover of {DENSE_CROSSOVER}: the dense transport \
+                 is exact and about as fast"
+            ),
+        },
+        TransportKind::Auto => TransportChoice {
+            kind: TransportKind::Hierarchical,
+            reason: format!(
+                "{n} elements, more than the crossover of {DENSE_CROSSOVER}: the hierarchical \
+                 transport's links grow about linearly with the elements, the dense one's pairs \
+                 quadratically"
+            ),
+        },
+    }
+}
