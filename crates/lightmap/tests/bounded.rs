@@ -267,21 +267,9 @@ fn sources_swept(polygons: &[Polygon]) -> Vec<Vec<usize>> {
 /// model's worst overshoot.
 #[test]
 fn real_models_texels_stay_within_their_elements_range() {
-    let dir = std::path::Path::new("/usr/share/assimp/models/glTF2");
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        println!(
-            "skipped: {} is not there (assimp-testmodels)",
-            dir.display()
-        );
+    let Some(files) = common::assimp_models() else {
         return;
     };
-    let mut files: Vec<std::path::PathBuf> = entries
-        .flatten()
-        .flat_map(|e| std::fs::read_dir(e.path()).into_iter().flatten().flatten())
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|x| x == "gltf" || x == "glb"))
-        .collect();
-    files.sort();
     let mut measured = 0;
     let mut worst_all = 0.0f64;
     for file in files {

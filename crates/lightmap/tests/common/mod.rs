@@ -1,5 +1,7 @@
 //! Helpers the lightmap crate's integration tests share.
 
+#![allow(dead_code)] // each test binary uses its own subset
+
 use glam::DVec3;
 use importer::{Origin, Polygon, Side};
 
@@ -21,4 +23,26 @@ pub fn polygon(vertices: Vec<DVec3>, material: usize) -> Polygon {
         material,
         origin,
     }
+}
+
+/// Debian's `assimp-testmodels` glTF 2.0 models (`/usr/share/assimp/models/glTF2`, as
+/// `tests/real_corpus.rs` finds them), sorted; `None`, after saying `skipped: …`, when the
+/// package is not installed.
+pub fn assimp_models() -> Option<Vec<std::path::PathBuf>> {
+    let dir = std::path::Path::new("/usr/share/assimp/models/glTF2");
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        println!(
+            "skipped: {} is not there (assimp-testmodels)",
+            dir.display()
+        );
+        return None;
+    };
+    let mut files: Vec<std::path::PathBuf> = entries
+        .flatten()
+        .flat_map(|e| std::fs::read_dir(e.path()).into_iter().flatten().flatten())
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "gltf" || x == "glb"))
+        .collect();
+    files.sort();
+    Some(files)
 }
