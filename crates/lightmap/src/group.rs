@@ -19,10 +19,10 @@ use glam::{DVec2, DVec3};
 use scene::Polygon;
 use std::collections::HashMap;
 
-/// Scenes with more polygons than this get grouped charts when grouping at least halves the
-/// chart count (or there are more polygons than one shelf-packed atlas takes); others keep
-/// one chart per polygon (each with its exact aspect, stretched to its shelf, and no interior
-/// seams).
+/// Scenes with more polygons than this get grouped charts when any polygons group (or there
+/// are more polygons than one shelf-packed atlas takes; polygons alone in their group keep
+/// the per-polygon layout); others keep one chart per polygon (each with its exact aspect,
+/// stretched to its shelf, and no interior seams).
 pub const GROUPED_ABOVE: usize = 4096;
 /// Every polygon of a chart has its normal within this angle of the chart's first polygon
 /// (so within twice it of the chart's mean normal).

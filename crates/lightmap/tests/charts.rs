@@ -129,3 +129,43 @@ fn a_ramp_that_winds_over_itself_gets_few_charts_that_do_not_overlap() {
         }
     }
 }
+
+#[test]
+fn a_smooth_mesh_beside_many_separate_quads_is_grouped() {
+    // 3 600 separate 0.1 m quads (an office's ceiling tiles, 0.05 m apart) and a cylinder of
+    // 48 segments × 12 rings (1 152 triangles): grouping takes the count from 4 752 to about
+    // 3 610, less than half off, so it used to be left out and the cylinder paid a chart per
+    // triangle. Now the cylinder is a few charts and the tiles keep theirs.
+    let mut polygons: Vec<Polygon> = (0..3600)
+        .map(|k| {
+            let o = DVec3::new((k % 60) as f64 * 0.15, (k / 60) as f64 * 0.15, 0.0);
+            let corner = |x: f64, y: f64| o + DVec3::new(x, y, 0.0);
+            polygon(
+                vec![
+                    corner(0.0, 0.0),
+                    corner(0.1, 0.0),
+                    corner(0.1, 0.1),
+                    corner(0.0, 0.1),
+                ],
+                0,
+            )
+        })
+        .collect();
+    let cylinder = surface(48, 12, |u, v| {
+        let a = std::f64::consts::TAU * u;
+        DVec3::new(4.0 + 0.5 * a.cos(), 4.0 + 0.5 * a.sin(), 1.0 + 2.0 * v)
+    });
+    let triangles = cylinder.len();
+    polygons.extend(cylinder);
+    assert!(polygons.len() > lightmap::GROUPED_ABOVE);
+    let (charts, atlases, occupancy) = measure(&polygons);
+    println!(
+        "tiles + cylinder: {} polygons, {charts} charts, {atlases} atlases, occupancy {:.1}%",
+        polygons.len(),
+        100.0 * occupancy
+    );
+    assert!(
+        charts <= 3600 + triangles / 20,
+        "{charts} charts for 3 600 tiles and {triangles} cylinder triangles"
+    );
+}
