@@ -299,7 +299,8 @@ pub fn stage_lightmap_gltf(
         })
         .collect();
     let scales: Vec<f64> = pngs.iter().map(|p| p.scale).collect();
-    let extras = extras(lightmap, &scales, &png_uris, &exr_paths).to_string();
+    let clipped: Vec<u64> = pngs.iter().map(|p| p.clipped).collect();
+    let extras = extras(lightmap, (&scales, &clipped), &png_uris, &exr_paths).to_string();
     let extras =
         serde_json::value::RawValue::from_string(extras).map_err(|e| ExportError::Encode {
             what: "glTF extras",
@@ -382,7 +383,7 @@ fn add_lights(root: &mut json::Root, scene: &Scene) {
 /// The root `extras`: what the lightmap is, its units and its files.
 fn extras(
     lightmap: &Lightmap,
-    png_scales: &[f64],
+    (png_scales, png_clipped): (&[f64], &[u64]),
     png_uris: &[Option<String>],
     exrs: &[PathBuf],
 ) -> serde_json::Value {
@@ -396,6 +397,7 @@ fn extras(
                 "exr": files::uri_for_file_name(&exrs[k]),
                 "png": png_uris[k],
                 "png_scale": png_scales[k],
+                "png_clipped": png_clipped[k],
                 "atlas": [a.width, a.height],
             })
         })
@@ -409,8 +411,10 @@ fn extras(
             "exr_encoding": "linear RGB, 32-bit float, H per texel",
             "png": png_uri,
             "png_encoding": "8-bit sRGB-encoded; H = srgb_to_linear(value / 255) * png_scale \
-                             (MOZ_lightmap intensity)",
+                             (MOZ_lightmap intensity); png_clipped texels are above png_scale \
+                             (255 in the PNG, exact in the EXR)",
             "png_scale": png_scale,
+            "png_clipped": png_clipped[0],
             "texel_size": lightmap.texel_size,
             "requested_texel_size": lightmap.requested_texel_size,
             "atlas": [lightmap.width, lightmap.height],

@@ -12,9 +12,49 @@ intensity units (the units of emission e and radiosity b: b = e + rho*H)";
 #[derive(Clone, Debug, PartialEq)]
 pub struct PngLightmap {
     pub bytes: Vec<u8>,
-    /// `H = srgb_to_linear(value / 255) × scale`: the largest H of any written texel (1 when
-    /// every texel is 0). This is `MOZ_lightmap.intensity`.
+    /// `H = srgb_to_linear(value / 255) × scale` ([`png_scale`]; 1 when every texel is 0).
+    /// This is `MOZ_lightmap.intensity`.
     pub scale: f64,
+    /// Chart texels with a band above `scale`, written as 255 there (the EXR keeps them).
+    pub clipped: u64,
+    /// Chart texels ([`Texel::Chart`]) the scale was chosen from.
+    pub covered: u64,
+}
+
+/// The share of chart texels (by their brightest band) that sets the PNG's scale: the
+/// 99.9th percentile, nearest rank.
+pub const PNG_PERCENTILE: f64 = 0.999;
+/// How far above the [`PNG_PERCENTILE`] texel the scale may reach before the brightest
+/// texels clip: a hot spot (a lamp's pool, a glint) up to twice the percentile keeps its
+/// shape; one texel a hundred times brighter than the rest no longer blacks them out.
+pub const PNG_HEADROOM: f64 = 2.0;
+
+/// The PNG's scale for `atlas`, and how many chart texels clip at it and how many there
+/// are: the brightest chart texel, or [`PNG_HEADROOM`] × the [`PNG_PERCENTILE`] texel when
+/// that is lower (so at most 0.1% clip); 1 when every chart texel is 0.
+pub fn png_scale(atlas: AtlasRef) -> (f64, u64, u64) {
+    let mut brightest: Vec<f32> = atlas
+        .texels
+        .iter()
+        .zip(atlas.coverage)
+        .filter(|(_, c)| matches!(c, Texel::Chart(_)))
+        .map(|(t, _)| t[0].max(t[1]).max(t[2]))
+        .collect();
+    let n = brightest.len();
+    let max = brightest.iter().copied().fold(0.0f32, f32::max);
+    if n == 0 || max <= 0.0 {
+        return (1.0, 0, n as u64);
+    }
+    let rank = ((PNG_PERCENTILE * n as f64).ceil() as usize).clamp(1, n);
+    let (_, &mut percentile, _) = brightest.select_nth_unstable_by(rank - 1, f32::total_cmp);
+    let capped = PNG_HEADROOM * f64::from(percentile);
+    let scale = if capped > 0.0 && capped < f64::from(max) {
+        capped
+    } else {
+        f64::from(max)
+    };
+    let clipped = brightest.iter().filter(|&&b| f64::from(b) > scale).count();
+    (scale, clipped as u64, n as u64)
 }
 
 /// The lightmap as an OpenEXR file: one layer, channels R, G, B as 32-bit floats (f16 would
@@ -75,17 +115,10 @@ pub fn encode_png(lightmap: &Lightmap) -> Result<PngLightmap, LightmapError> {
     encode_png_atlas(lightmap.atlas(0))
 }
 
-/// [`encode_png`] of one atlas ([`Lightmap::atlas`]), scaled to its own brightest texel.
+/// [`encode_png`] of one atlas ([`Lightmap::atlas`]), at its own [`png_scale`].
 pub fn encode_png_atlas(lightmap: AtlasRef) -> Result<PngLightmap, LightmapError> {
     use image::ImageEncoder;
-    let max = lightmap
-        .texels
-        .iter()
-        .zip(lightmap.coverage)
-        .filter(|(_, c)| !matches!(c, Texel::Unused))
-        .flat_map(|(t, _)| t.iter().copied())
-        .fold(0.0f32, f32::max);
-    let scale = if max > 0.0 { f64::from(max) } else { 1.0 };
+    let (scale, clipped, covered) = png_scale(lightmap);
     let bytes: Vec<u8> = lightmap
         .texels
         .iter()
@@ -108,5 +141,10 @@ pub fn encode_png_atlas(lightmap: AtlasRef) -> Result<PngLightmap, LightmapError
             what: "PNG",
             message: e.to_string(),
         })?;
-    Ok(PngLightmap { bytes: png, scale })
+    Ok(PngLightmap {
+        bytes: png,
+        scale,
+        clipped,
+        covered,
+    })
 }

@@ -147,14 +147,33 @@ impl Field {
     /// The field at grid parameters `p` (see [`Field::params`]), from per-mesh-vertex values.
     /// Outside the polygon the nearest element's interpolant is extended.
     pub(crate) fn value_at_params(&self, p: DVec2, values: &[[f64; 3]]) -> [f64; 3] {
+        self.interpolate(p, values, false)
+    }
+
+    /// The field at plane point `q` of the polygon, bounded: the parameters are clamped into
+    /// the polygon's grid and the cell's weights into [0, 1], and the result into the range
+    /// of the vertex values it interpolates (each a weighted mean of the elements around it),
+    /// so no rounding or sliver can leave that range.
+    pub(crate) fn value_within(&self, q: DVec2, values: &[[f64; 3]]) -> [f64; 3] {
+        self.interpolate(self.params(q), values, true)
+    }
+
+    /// [`Field::value_at_params`], or with `bounded` [`Field::value_within`]'s clamps.
+    fn interpolate(&self, p: DVec2, values: &[[f64; 3]], bounded: bool) -> [f64; 3] {
         let at = |id: u32| values[id as usize];
+        let unit = |f: f64| if bounded { f.clamp(0.0, 1.0) } else { f };
         match self.grid {
-            Grid::Elements(ref locator) => locator.value_at(p, values),
+            Grid::Elements(ref locator) => locator.value_at(p, values, bounded),
             Grid::Quad { base, nu, nv } => {
+                let p = if bounded {
+                    p.clamp(DVec2::ZERO, DVec2::ONE)
+                } else {
+                    p
+                };
                 let (x, y) = (p.x * f64::from(nu), p.y * f64::from(nv));
                 let i = clamp_cell(x, nu);
                 let j = clamp_cell(y, nv);
-                let (fx, fy) = (x - f64::from(i), y - f64::from(j));
+                let (fx, fy) = (unit(x - f64::from(i)), unit(y - f64::from(j)));
                 let id = |i: u32, j: u32| base + j * (nu + 1) + i;
                 let (v00, v10, v11, v01) = (
                     at(id(i, j)),
@@ -162,27 +181,31 @@ impl Field {
                     at(id(i + 1, j + 1)),
                     at(id(i, j + 1)),
                 );
-                std::array::from_fn(|c| {
+                let v = std::array::from_fn(|c| {
                     (1.0 - fy) * ((1.0 - fx) * v00[c] + fx * v10[c])
                         + fy * ((1.0 - fx) * v01[c] + fx * v11[c])
-                })
+                });
+                within(v, &[v00, v10, v11, v01], bounded)
             }
             Grid::Triangle { base, n } => {
+                let p = if bounded { into_triangle(p) } else { p };
                 let (x, y) = (p.x * f64::from(n), p.y * f64::from(n));
                 let k = clamp_cell(y, n);
                 let i = clamp_cell(x, n - k);
-                let (fx, fy) = (x - f64::from(i), y - f64::from(k));
+                let (fx, fy) = (unit(x - f64::from(i)), unit(y - f64::from(k)));
                 let row_start = |k: u32| k * (n + 1) - k * k.saturating_sub(1) / 2;
                 let id = |i: u32, k: u32| base + row_start(k) + i;
                 let has_down = i + 1 < n - k;
                 if fx + fy <= 1.0 || !has_down {
                     let (a, b, c) = (at(id(i, k)), at(id(i + 1, k)), at(id(i, k + 1)));
-                    std::array::from_fn(|m| a[m] + fx * (b[m] - a[m]) + fy * (c[m] - a[m]))
+                    let v = std::array::from_fn(|m| a[m] + fx * (b[m] - a[m]) + fy * (c[m] - a[m]));
+                    within(v, &[a, b, c], bounded)
                 } else {
                     let (a, b, c) = (at(id(i + 1, k)), at(id(i + 1, k + 1)), at(id(i, k + 1)));
-                    std::array::from_fn(|m| {
+                    let v = std::array::from_fn(|m| {
                         b[m] + (1.0 - fy) * (a[m] - b[m]) + (1.0 - fx) * (c[m] - b[m])
-                    })
+                    });
+                    within(v, &[a, b, c], bounded)
                 }
             }
         }
@@ -387,12 +410,23 @@ impl Locator {
 
     /// The field at plane point `q`: linear over the triangle containing it (the one it is
     /// least outside of, in barycentric terms, for points outside the polygon).
-    fn value_at(&self, q: DVec2, values: &[[f64; 3]]) -> [f64; 3] {
-        let Some((k, w)) = self.locate(q) else {
+    /// With `bounded`, negative weights (rounding at the polygon's edge) are clamped to 0
+    /// and the result into the range of the triangle's vertex values.
+    fn value_at(&self, q: DVec2, values: &[[f64; 3]], bounded: bool) -> [f64; 3] {
+        let Some((k, mut w)) = self.locate(q) else {
             return [0.0; 3];
         };
+        if bounded {
+            let w0 = w.map(|x| x.max(0.0));
+            let sum = w0[0] + w0[1] + w0[2];
+            if sum > 0.0 {
+                w = w0.map(|x| x / sum);
+            }
+        }
         let ids = self.tris[k].0;
-        std::array::from_fn(|band| (0..3).map(|j| w[j] * values[ids[j] as usize][band]).sum())
+        let v =
+            std::array::from_fn(|band| (0..3).map(|j| w[j] * values[ids[j] as usize][band]).sum());
+        within(v, &ids.map(|id| values[id as usize]), bounded)
     }
 
     /// The element (counted from the polygon's first) whose triangle holds `q`, or the
@@ -429,6 +463,38 @@ impl Locator {
             found = best(&mut (0..self.tris.len()));
         }
         found.map(|(_, k, w)| (k, w))
+    }
+}
+
+/// With `bounded`, `v` clamped per band into the range of `corners` (the vertex values it
+/// interpolates; the first corner's when `v` is not a number); else `v` as it is.
+fn within(v: [f64; 3], corners: &[[f64; 3]], bounded: bool) -> [f64; 3] {
+    if !bounded {
+        return v;
+    }
+    std::array::from_fn(|c| {
+        let (lo, hi) = corners
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                (lo.min(x[c]), hi.max(x[c]))
+            });
+        if v[c].is_nan() {
+            corners[0][c]
+        } else {
+            v[c].clamp(lo, hi)
+        }
+    })
+}
+
+/// Triangle parameters (β, γ) moved into the triangle β, γ ≥ 0, β + γ ≤ 1 (a point of the
+/// polygon gives such parameters up to rounding).
+fn into_triangle(p: DVec2) -> DVec2 {
+    let p = p.max(DVec2::ZERO);
+    let sum = p.x + p.y;
+    if sum > 1.0 {
+        p / sum
+    } else {
+        p
     }
 }
 

@@ -7,8 +7,9 @@
 //! the chart's area-weighted mean normal (the mean of vectors in a cone stays in it). The
 //! chart is flattened by projecting onto the plane across its mean normal, turned so its
 //! principal axis runs along x, scaled to texels; a chart whose projected triangles overlap
-//! (a surface that folds over its own plane) is split back into one chart per polygon, each
-//! projected onto its own plane, so no chart overlaps. Charts are packed as their bounding
+//! (a surface that folds over its own plane) is grown again inside itself with half the cone,
+//! down to [`MIN_CONE_DEGREES`] and then one chart per polygon, each projected onto its own
+//! plane, so no chart overlaps. Charts are packed as their bounding
 //! rectangles with [`crate::PADDING`] texels around each (as per-polygon regions), with
 //! `etagere`.
 
@@ -18,10 +19,10 @@ use glam::{DVec2, DVec3};
 use scene::Polygon;
 use std::collections::HashMap;
 
-/// Scenes with more polygons than this get grouped charts when grouping at least halves the
-/// chart count (or there are more polygons than one shelf-packed atlas takes); others keep
-/// one chart per polygon (each with its exact aspect, stretched to its shelf, and no interior
-/// seams).
+/// Scenes with more polygons than this get grouped charts when any polygons group (or there
+/// are more polygons than one shelf-packed atlas takes; polygons alone in their group keep
+/// the per-polygon layout); others keep one chart per polygon (each with its exact aspect,
+/// stretched to its shelf, and no interior seams).
 pub const GROUPED_ABOVE: usize = 4096;
 /// Every polygon of a chart has its normal within this angle of the chart's first polygon
 /// (so within twice it of the chart's mean normal).
@@ -40,10 +41,12 @@ fn key(p: DVec3) -> [u64; 3] {
     [p.x, p.y, p.z].map(|c| (c + 0.0).to_bits())
 }
 
+/// Undirected edges (both ends bit for bit) → the polygons that have them, in polygon order.
+type Edges = HashMap<([u64; 3], [u64; 3]), Vec<u32>>;
+
 /// The charts of `polygons`, in order of their first polygon.
 pub(crate) fn groups(polygons: &[Polygon]) -> Vec<Group> {
-    // Undirected edges → the polygons that have them.
-    let mut edges: HashMap<([u64; 3], [u64; 3]), Vec<u32>> = HashMap::new();
+    let mut edges: Edges = HashMap::new();
     for (k, p) in polygons.iter().enumerate() {
         let v = &p.vertices;
         for i in 0..v.len() {
@@ -52,51 +55,108 @@ pub(crate) fn groups(polygons: &[Polygon]) -> Vec<Group> {
             edges.entry(e).or_default().push(k as u32);
         }
     }
-    let cone = CHART_CONE_DEGREES.to_radians().cos();
-    let mut chart_of = vec![u32::MAX; polygons.len()];
+    // Per polygon: 0 taken by a chart, else the token of the set it may still join.
+    let mut free = vec![1u32; polygons.len()];
+    let mut token = 1;
     let mut out = Vec::new();
     for seed in 0..polygons.len() {
-        if chart_of[seed] != u32::MAX {
+        if free[seed] == 0 {
             continue;
         }
-        let id = out.len() as u32;
-        let s = &polygons[seed];
-        chart_of[seed] = id;
-        let mut members = vec![seed];
-        let mut next = 0;
-        while next < members.len() {
-            let p = members[next];
-            next += 1;
-            let v = &polygons[p].vertices;
-            for i in 0..v.len() {
-                let (a, b) = (key(v[i]), key(v[(i + 1) % v.len()]));
-                let e = if a <= b { (a, b) } else { (b, a) };
-                for &q in edges.get(&e).map_or(&[][..], Vec::as_slice) {
-                    let q = q as usize;
-                    let t = &polygons[q];
-                    if chart_of[q] == u32::MAX
-                        && t.material == s.material
-                        && t.origin.node == s.origin.node
-                        && t.normal.dot(s.normal) >= cone
-                    {
-                        chart_of[q] = id;
-                        members.push(q);
-                    }
-                }
-            }
-        }
-        members.sort_unstable();
-        match flatten(polygons, &members) {
-            Some(g) => out.push(g),
-            None => {
-                // Folds over its plane: one chart per polygon.
-                for &p in &members {
-                    out.extend(flatten(polygons, &[p]));
+        let members = grow(polygons, &edges, seed, CHART_CONE_DEGREES, &mut free, 1);
+        split(
+            polygons,
+            &edges,
+            members,
+            CHART_CONE_DEGREES,
+            &mut free,
+            &mut token,
+            &mut out,
+        );
+    }
+    out
+}
+
+/// The polygons reachable from `seed` across shared edges among those marked `token` in
+/// `free`, of the seed's node and material, whose normals lie within `degrees` of the
+/// seed's; marked taken (0) and returned in polygon order.
+fn grow(
+    polygons: &[Polygon],
+    edges: &Edges,
+    seed: usize,
+    degrees: f64,
+    free: &mut [u32],
+    token: u32,
+) -> Vec<usize> {
+    let cone = degrees.to_radians().cos();
+    let s = &polygons[seed];
+    free[seed] = 0;
+    let mut members = vec![seed];
+    let mut next = 0;
+    while next < members.len() {
+        let p = members[next];
+        next += 1;
+        let v = &polygons[p].vertices;
+        for i in 0..v.len() {
+            let (a, b) = (key(v[i]), key(v[(i + 1) % v.len()]));
+            let e = if a <= b { (a, b) } else { (b, a) };
+            for &q in edges.get(&e).map_or(&[][..], Vec::as_slice) {
+                let q = q as usize;
+                let t = &polygons[q];
+                if free[q] == token
+                    && t.material == s.material
+                    && t.origin.node == s.origin.node
+                    && t.normal.dot(s.normal) >= cone
+                {
+                    free[q] = 0;
+                    members.push(q);
                 }
             }
         }
     }
-    out
+    members.sort_unstable();
+    members
+}
+
+/// Charts narrower than this cone are not split further: their polygons become charts of
+/// their own.
+const MIN_CONE_DEGREES: f64 = 1.0;
+
+/// `members` as one chart, or where its projection folds over itself, charts grown again
+/// inside it with half the cone (a cylinder's band becomes narrower bands, not one chart per
+/// triangle), down to [`MIN_CONE_DEGREES`], then one chart per polygon.
+fn split(
+    polygons: &[Polygon],
+    edges: &Edges,
+    members: Vec<usize>,
+    degrees: f64,
+    free: &mut [u32],
+    token: &mut u32,
+    out: &mut Vec<Group>,
+) {
+    if let Some(g) = flatten(polygons, &members) {
+        out.push(g);
+        return;
+    }
+    let half = degrees / 2.0;
+    if half < MIN_CONE_DEGREES {
+        for &p in &members {
+            out.extend(flatten(polygons, &[p]));
+        }
+        return;
+    }
+    *token += 1;
+    let mine = *token;
+    for &p in &members {
+        free[p] = mine;
+    }
+    for &seed in &members {
+        if free[seed] != mine {
+            continue;
+        }
+        let sub = grow(polygons, edges, seed, half, free, mine);
+        split(polygons, edges, sub, half, free, token, out);
+    }
 }
 
 /// Projects `members` onto the plane across their mean normal, principal axis along x;

@@ -1,5 +1,5 @@
 //! Lightmaps for a radiosity bake: charts (one per polygon; grouped across smooth, connected
-//! surfaces above [`GROUPED_ABOVE`] polygons where that at least halves the charts; or the input's own `TEXCOORD_1` kept,
+//! surfaces above [`GROUPED_ABOVE`] polygons where any polygons group; or the input's own `TEXCOORD_1` kept,
 //! [`UvMode`]: the whole scene's as it is, or with `Auto` each usable primitive's in a region
 //! of its own beside generated charts) packed into one atlas — or, when they do not fit one at the texel size, into
 //! several ([`Options::max_atlases`], whole primitives per atlas, [`Lightmap::atlases`]) —
@@ -50,8 +50,8 @@ mod raster;
 pub use authored::{AuthoredUv, UvDecision, UvMode, MIN_PADDING, OWN_ATLAS, OWN_REGION};
 pub use chart::{PADDING, PAIR_GAP};
 pub use encode::{
-    encode_exr, encode_exr_atlas, encode_png, encode_png_atlas, linear_to_srgb, srgb_to_linear,
-    PngLightmap, EXR_COMMENT,
+    encode_exr, encode_exr_atlas, encode_png, encode_png_atlas, linear_to_srgb, png_scale,
+    srgb_to_linear, PngLightmap, EXR_COMMENT, PNG_HEADROOM, PNG_PERCENTILE,
 };
 pub use group::{CHART_CONE_DEGREES, GROUPED_ABOVE};
 pub use raster::DILATION_RADIUS;
@@ -183,7 +183,7 @@ pub struct Stats {
     /// Times the texel size was made coarser to fit `max_size`.
     pub reductions: u32,
     /// Charts made: one per polygon, or per group above [`GROUPED_ABOVE`] polygons (when
-    /// grouping at least halves the count); 0 for a kept authored layout.
+    /// any polygons group); 0 for a kept authored layout.
     pub charts: usize,
     /// Atlases (1 unless the charts did not fit one at the texel size).
     pub atlases: usize,
@@ -359,11 +359,12 @@ pub fn build_with(
     } else if !plan.own.is_empty() {
         Some(mixed_layout(polygons, &plan.own, options)?)
     } else {
-        // Grouped charts where they group: at least two polygons per chart on average, or
-        // more polygons than one etagere atlas takes as regions.
+        // Grouped charts where any polygons group (those alone in their group keep the
+        // per-polygon layout beside them), or more polygons than one etagere atlas takes
+        // as regions.
         let groups = (polygons.len() > GROUPED_ABOVE)
             .then(|| group::groups(polygons))
-            .filter(|g| 2 * g.len() <= polygons.len() || polygons.len() > pack::MAX_REGIONS);
+            .filter(|g| g.len() < polygons.len() || polygons.len() > pack::MAX_REGIONS);
         match groups {
             Some(groups) => {
                 let all: Vec<usize> = (0..polygons.len()).collect();
@@ -765,8 +766,7 @@ fn mixed_layout(
     let rest: Vec<usize> = (0..polygons.len()).filter(|&k| !owned[k]).collect();
     let groups = if rest.len() > GROUPED_ABOVE {
         let sub: Vec<Polygon> = rest.iter().map(|&k| polygons[k].clone()).collect();
-        Some(group::groups(&sub))
-            .filter(|g| 2 * g.len() <= sub.len() || sub.len() > pack::MAX_REGIONS)
+        Some(group::groups(&sub)).filter(|g| g.len() < sub.len() || sub.len() > pack::MAX_REGIONS)
     } else {
         None
     };
@@ -784,12 +784,20 @@ fn packed_layout(
     groups: Option<Vec<group::Group>>,
     options: &Options,
 ) -> Result<Assembly, LightmapError> {
-    let sub: Vec<Polygon> = if groups.is_none() {
-        rest.iter().map(|&k| polygons[k].clone()).collect()
-    } else {
-        Vec::new()
+    let chart_count = groups.as_ref().map_or(rest.len(), Vec::len);
+    // Polygons alone in their group keep the per-polygon layout (a quad's exact aspect, two
+    // similar triangles in one rectangle); groups of several are projected.
+    let (groups, singles): (Option<Vec<group::Group>>, Vec<usize>) = match groups {
+        None => (None, (0..rest.len()).collect()),
+        Some(groups) => {
+            let (many, one): (Vec<group::Group>, Vec<group::Group>) =
+                groups.into_iter().partition(|g| g.polygons.len() > 1);
+            (Some(many), one.iter().map(|g| g.polygons[0]).collect())
+        }
     };
-    let chart_count = groups.as_ref().map_or(sub.len(), Vec::len);
+    // Indices into `rest` of the polygons laid out one per chart.
+    let rest_singles: Vec<usize> = singles.iter().map(|&k| rest[k]).collect();
+    let sub: Vec<Polygon> = rest_singles.iter().map(|&k| polygons[k].clone()).collect();
     let max = options.max_size;
     let area: f64 = polygons.iter().map(polygon_area).sum();
     // No packing beats the polygons' own area over every atlas allowed.
@@ -811,28 +819,31 @@ fn packed_layout(
                 None => fits = false,
             }
         }
-        match &groups {
-            Some(groups) => {
-                for g in groups {
-                    match group::region(g, per_unit) {
-                        Some((width, height, uv)) => items.push(Item {
-                            width,
-                            height,
-                            charts: g.polygons.iter().map(|&p| rest[p]).zip(uv).collect(),
-                        }),
-                        None => fits = false,
-                    }
-                }
+        for g in groups.iter().flatten() {
+            match group::region(g, per_unit) {
+                Some((width, height, uv)) => items.push(Item {
+                    width,
+                    height,
+                    charts: g.polygons.iter().map(|&p| rest[p]).zip(uv).collect(),
+                }),
+                None => fits = false,
             }
-            None if sub.is_empty() => {}
-            None => match chart::layout(&sub, per_unit) {
-                Some(regions) => items.extend(regions.into_iter().map(|r| Item {
-                    width: r.width,
-                    height: r.height,
-                    charts: r.charts.into_iter().map(|(p, uv)| (rest[p], uv)).collect(),
+        }
+        if !sub.is_empty() {
+            match chart::layout(&sub, per_unit) {
+                Some(regions) => items.extend(regions.into_iter().map(|r| {
+                    Item {
+                        width: r.width,
+                        height: r.height,
+                        charts: r
+                            .charts
+                            .into_iter()
+                            .map(|(p, uv)| (rest_singles[p], uv))
+                            .collect(),
+                    }
                 })),
                 None => fits = false,
-            },
+            }
         }
         if !fits {
             texel *= 2.0;

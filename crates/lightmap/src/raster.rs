@@ -79,19 +79,71 @@ impl Source<'_> {
             }
         }
     }
+
+    /// [`Source::at`] for a point `q` inside the polygon, bounded: the smooth field never
+    /// leaves the range of the vertex values it interpolates ([`Field::value_within`]).
+    pub(crate) fn at_within(&self, polygon: usize, field: &Field, q: DVec2) -> [f64; 3] {
+        match *self {
+            Source::Smooth(values) => field.value_within(q, values),
+            Source::Flat { .. } => self.at(polygon, field, q),
+        }
+    }
 }
 
-/// Barycentric coordinates of `c` in triangle (a, b, d).
-fn barycentric(c: DVec2, a: DVec2, b: DVec2, d: DVec2) -> [f64; 3] {
-    let det = cross(b - a, d - a);
-    let l1 = cross(c - a, d - a) / det;
-    let l2 = cross(b - a, c - a) / det;
-    [1.0 - l1 - l2, l1, l2]
+/// Barycentric weights of the point of triangle (a, b, d) nearest to `c` (all in [0, 1],
+/// summing to 1; distances in texel space, where texels are square), and that distance
+/// squared. A degenerate triangle gives its first corner's weights when nothing better is
+/// defined.
+fn nearest_in_triangle(c: DVec2, a: DVec2, b: DVec2, d: DVec2) -> ([f64; 3], f64) {
+    // Ericson, Real-Time Collision Detection, 5.1.5, in 2D.
+    let (ab, ad, ac) = (b - a, d - a, c - a);
+    let at = |w: [f64; 3]| {
+        let p = a * w[0] + b * w[1] + d * w[2];
+        (w, p.distance_squared(c))
+    };
+    let (d1, d2) = (ab.dot(ac), ad.dot(ac));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return at([1.0, 0.0, 0.0]);
+    }
+    let bc = c - b;
+    let (d3, d4) = (ab.dot(bc), ad.dot(bc));
+    if d3 >= 0.0 && d4 <= d3 {
+        return at([0.0, 1.0, 0.0]);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let t = d1 / (d1 - d3);
+        return at([1.0 - t, t, 0.0]);
+    }
+    let dc = c - d;
+    let (d5, d6) = (ab.dot(dc), ad.dot(dc));
+    if d6 >= 0.0 && d5 <= d6 {
+        return at([0.0, 0.0, 1.0]);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let t = d2 / (d2 - d6);
+        return at([1.0 - t, 0.0, t]);
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return at([0.0, 1.0 - t, t]);
+    }
+    let sum = va + vb + vc;
+    let (v, w) = (vb / sum, vc / sum);
+    if !(v.is_finite() && w.is_finite()) {
+        return at([1.0, 0.0, 0.0]);
+    }
+    at([1.0 - v - w, v, w])
 }
 
 /// The field at texel-space point `c` of a chart: through the glTF triangles (v0 v1 v2) and
 /// (v0 v2 v3) — the ones a renderer interpolates TEXCOORD_1 over — to the surface point, then
-/// the grid. Outside the chart the nearer triangle's affine map is extended. Clamped to ≥ 0.
+/// the grid. A point outside the chart (a footprint texel's centre past the edge) takes the
+/// chart's nearest point: nothing is extrapolated, so a sliver's texels hold values of the
+/// sliver's own edge and every texel lies within the range of the element values around
+/// the point it reads ([`Field::value_within`]). Clamped to ≥ 0.
 pub(crate) fn chart_value(
     c: DVec2,
     uv: &[DVec2],
@@ -101,20 +153,15 @@ pub(crate) fn chart_value(
 ) -> [f64; 3] {
     let field = &fields[polygon];
     let corners = &field.corners;
-    let point = if uv.len() == 3 {
-        let l = barycentric(c, uv[0], uv[1], uv[2]);
-        corners[0] * l[0] + corners[1] * l[1] + corners[2] * l[2]
-    } else {
-        let first = barycentric(c, uv[0], uv[1], uv[2]);
-        let second = barycentric(c, uv[0], uv[2], uv[3]);
-        let min = |l: &[f64; 3]| l[0].min(l[1]).min(l[2]);
-        if min(&first) >= min(&second) {
-            corners[0] * first[0] + corners[1] * first[1] + corners[2] * first[2]
-        } else {
-            corners[0] * second[0] + corners[2] * second[1] + corners[3] * second[2]
+    let (first, d1) = nearest_in_triangle(c, uv[0], uv[1], uv[2]);
+    let mut point = corners[0] * first[0] + corners[1] * first[1] + corners[2] * first[2];
+    if uv.len() == 4 {
+        let (second, d2) = nearest_in_triangle(c, uv[0], uv[2], uv[3]);
+        if d2 < d1 {
+            point = corners[0] * second[0] + corners[2] * second[1] + corners[3] * second[2];
         }
-    };
-    source.at(polygon, field, point).map(|v| v.max(0.0))
+    }
+    source.at_within(polygon, field, point).map(|v| v.max(0.0))
 }
 
 /// Reconstructs one region: footprints first, then the gutter by nearest footprint texel
