@@ -23,7 +23,7 @@ mod lightmap_gltf;
 pub mod report;
 mod same_file;
 
-pub use files::{check_target, remove_stale_temporaries, OutputSet};
+pub use files::{check_target, remove_stale_temporaries, FileOps, OutputSet, RealFiles};
 pub use same_file::{check_distinct, SameFile};
 
 pub use lightmap_gltf::{
