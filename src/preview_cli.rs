@@ -123,6 +123,8 @@ fn run(cli: &PreviewCli) -> Result<(), (u8, String)> {
         view: cli.view,
         ..bake_job::preview::Options::default()
     };
+    bake_job::check_preview_output(&cli.input, &cli.output)
+        .map_err(|failure| (failure.code, failure.line()))?;
     let code = |e: &bake_job::preview::PreviewError| if e.is_input_error() { 1 } else { 3 };
     let rendered = bake_job::preview::render_file(&cli.input, &options)
         .map_err(|e| (code(&e), e.to_string()))?;

@@ -286,15 +286,34 @@ impl Drop for OutputSet {
     }
 }
 
-/// A target may be a file (replaced) or not exist yet; a directory (or anything else that
-/// is not a file or a link) cannot be replaced by a rename.
+/// A target may be a file (replaced) or not exist yet, or be a link to a file (the link is
+/// replaced). A directory, a device, a FIFO or a socket, or a link to one (`/dev/stdout`),
+/// cannot be replaced by a rename without destroying it: refused. Outputs are never streamed.
 pub fn check_target(path: &Path) -> Result<(), ExportError> {
-    match fs::symlink_metadata(path) {
-        Ok(meta) if !(meta.is_file() || meta.file_type().is_symlink()) => Err(ExportError::Io {
+    let refuse = |why: &str| {
+        Err(ExportError::Io {
             path: path.to_path_buf(),
-            source: std::io::Error::other("it exists and is not a regular file"),
-        }),
-        _ => Ok(()),
+            source: std::io::Error::other(why.to_string()),
+        })
+    };
+    let Ok(meta) = fs::symlink_metadata(path) else {
+        return Ok(());
+    };
+    if meta.is_file() {
+        return Ok(());
+    }
+    if !meta.file_type().is_symlink() {
+        return refuse("it exists and is not a regular file");
+    }
+    match fs::metadata(path) {
+        // A dangling link is replaced like a missing file.
+        Err(_) => Ok(()),
+        Ok(target) if target.is_file() => Ok(()),
+        Ok(_) => refuse(
+            "it is a link to something that is not a regular file (a device, a FIFO, a \
+             directory); outputs replace their target by a rename and are never streamed: \
+             name a regular file",
+        ),
     }
 }
 
