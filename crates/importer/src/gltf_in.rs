@@ -73,8 +73,18 @@ fn read_buffers(
                 buffers.push(gltf::buffer::Data(Vec::new()));
                 continue;
             }
-            (None, _) => gltf::buffer::Data::from_source_and_blob(source, None, &mut blob)
-                .map_err(|e| gltf_error(&e))?,
+            (None, _) => {
+                let named = match &source {
+                    gltf::buffer::Source::Uri(uri) => format!(" (URI {})", short_uri(uri)),
+                    gltf::buffer::Source::Bin => " (the GLB's BIN chunk)".into(),
+                };
+                gltf::buffer::Data::from_source_and_blob(source, None, &mut blob).map_err(|e| {
+                    let ImportError::Gltf(text) = gltf_error(&e) else {
+                        return gltf_error(&e);
+                    };
+                    ImportError::Gltf(format!("buffer {index}{named}: {text}"))
+                })?
+            }
             (Some(_), None) => {
                 return Err(ImportError::Gltf(
                     "a buffer refers to an external file, which cannot be read without a \
@@ -110,11 +120,23 @@ fn read_buffers(
     Ok(buffers)
 }
 
+/// A URI as an error line shows it: quoted, and cut after 60 characters (a data URI can
+/// be megabytes long).
+fn short_uri(uri: &str) -> String {
+    const SHOWN: usize = 60;
+    match uri.char_indices().nth(SHOWN) {
+        Some((cut, _)) => format!("{:?}… ({} bytes)", &uri[..cut], uri.len()),
+        None => format!("{uri:?}"),
+    }
+}
+
 /// Splits a GLB container (glTF 2.0, "GLB File Format": 12-byte header, JSON chunk,
 /// optional BIN chunk) into its JSON and binary parts; any other input is the JSON itself.
 fn split_container(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), ImportError> {
     if !bytes.starts_with(b"glTF") {
-        return Ok((bytes, None));
+        // A UTF-8 byte-order mark before the JSON (some Windows editors write one): the
+        // glTF spec forbids it, but what follows is the document.
+        return Ok((bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes), None));
     }
     let bad = |what: &str| ImportError::Gltf(format!("malformed GLB container: {what}"));
     let word = |at: usize| -> Option<u32> {
@@ -143,6 +165,9 @@ fn split_container(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), ImportError> 
     let (kind, json, next) = chunk(12).ok_or_else(|| bad("truncated JSON chunk"))?;
     if kind != JSON {
         return Err(bad("the first chunk is not JSON"));
+    }
+    if json.is_empty() {
+        return Err(bad("the JSON chunk is empty (its length is 0)"));
     }
     let bin = if next >= bytes.len() {
         None
