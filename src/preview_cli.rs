@@ -62,11 +62,7 @@ struct PreviewCli {
 pub fn main(args: impl IntoIterator<Item = OsString>) -> ExitCode {
     let cli = match PreviewCli::try_parse_from(args) {
         Ok(cli) => cli,
-        Err(e) => {
-            let code = if e.use_stderr() { 2 } else { 0 };
-            let _ = e.print();
-            return ExitCode::from(code);
-        }
+        Err(e) => return crate::usage_error(&e, "bake preview"),
     };
     match run(&cli) {
         Ok(()) => ExitCode::SUCCESS,

@@ -4,10 +4,11 @@
 mod common;
 
 use bake_testkit::{file_names, GltfBuilder, FLOAT, TRIANGLES};
-use common::bake;
+use common::{bake, write_obj_with_material};
 use serde_json::json;
 use std::path::Path;
 
+const BAD_INPUT: i32 = 1;
 const USAGE: i32 = 2;
 const OUTPUT: i32 = 3;
 
@@ -167,4 +168,72 @@ fn special_files_and_links_to_them_are_refused_never_replaced() {
     .success();
     assert!(out.exists());
     assert!(std::fs::read(&to_file).expect("read").starts_with(b"{"));
+}
+
+/// An emission finite in f64 but past f32 (what the output holds) is bad input naming the
+/// material, refused before the bake (it was exit 3 "cannot write …: not finite" after it).
+#[test]
+fn emission_past_f32_exits_1_naming_the_material() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let input = write_obj_with_material(dir.path(), "hot", "Ke 1e39 0 0");
+    let out = dir.path().join("out.gltf");
+    let run = bake([input.as_os_str(), out.as_os_str()]);
+    let line = single_error_line(&run, BAD_INPUT);
+    assert!(
+        line.contains("material \"paint\"") && line.contains("1e39"),
+        "{line}"
+    );
+    assert!(!out.exists());
+}
+
+/// clap's several-line blocks are one line, exit 2.
+#[test]
+fn usage_errors_are_one_line() {
+    let cube = bake_testkit::fixture("cube.gltf");
+    for args in [
+        &["--no-such-flag"][..],
+        &["--shading", "glossy"],
+        &["--subdiv", "2", "--max-element-size", "0.1"],
+    ] {
+        let mut command: Vec<&std::ffi::OsStr> = args.iter().map(|a| a.as_ref()).collect();
+        command.extend([cube.as_os_str(), "o.gltf".as_ref()]);
+        let run = bake(&command);
+        assert_eq!(run.code, Some(USAGE), "{run:#?}");
+        assert_eq!(run.stderr.trim_end().lines().count(), 1, "{run:#?}");
+        assert!(run.stderr.contains("see `bake --help`"), "{run:#?}");
+    }
+    let run = bake(Vec::<&str>::new());
+    assert_eq!(
+        (run.code, run.stderr.trim_end().lines().count()),
+        (Some(USAGE), 1)
+    );
+    let run = bake(["preview", "--width", "0", "a.gltf", "b.png"]);
+    assert_eq!(run.code, Some(USAGE), "{run:#?}");
+    assert_eq!(run.stderr.trim_end().lines().count(), 1, "{run:#?}");
+    assert!(run.stderr.contains("see `bake preview --help`"), "{run:#?}");
+    // --help is still the whole help, exit 0.
+    assert!(bake(["--help"]).success().stdout.lines().count() > 20);
+}
+
+/// An OUT name whose temporary (up to 37 bytes longer) would pass the 255-byte limit is
+/// refused before any work, naming the limit (it baked fully, then failed).
+#[test]
+fn an_out_name_too_long_for_its_temporary_is_refused_before_work() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let cube = bake_testkit::fixture("cube.gltf");
+    let out = dir.path().join(format!("{}.glb", "o".repeat(240)));
+    let started = std::time::Instant::now();
+    let run = bake([
+        cube.as_os_str(),
+        out.as_os_str(),
+        "--target".as_ref(),
+        "vertex".as_ref(),
+    ]);
+    let line = single_error_line(&run, OUTPUT);
+    assert!(
+        line.contains("255-byte limit") && line.contains(&"o".repeat(240)),
+        "{line}"
+    );
+    assert!(started.elapsed().as_secs_f64() < 5.0);
+    assert_eq!(file_names(dir.path()), Vec::<String>::new());
 }

@@ -296,6 +296,18 @@ pub fn check_target(path: &Path) -> Result<(), ExportError> {
             source: std::io::Error::other(why.to_string()),
         })
     };
+    let name_bytes = path.file_name().map_or(0, |n| n.as_encoded_bytes().len());
+    if name_bytes + TEMPORARY_NAME_EXTRA > NAME_MAX {
+        return Err(ExportError::Io {
+            path: path.to_path_buf(),
+            source: std::io::Error::other(format!(
+                "its file name is {name_bytes} bytes long: its temporary \
+                 `.NAME.tmp-PID-N` needs up to {TEMPORARY_NAME_EXTRA} more, past the \
+                 {NAME_MAX}-byte limit of a file name (at most {} bytes)",
+                NAME_MAX - TEMPORARY_NAME_EXTRA
+            )),
+        });
+    }
     let Ok(meta) = fs::symlink_metadata(path) else {
         return Ok(());
     };
@@ -316,6 +328,12 @@ pub fn check_target(path: &Path) -> Result<(), ExportError> {
         ),
     }
 }
+
+/// The longest file name most file systems take (Linux's `NAME_MAX`).
+const NAME_MAX: usize = 255;
+/// What a temporary's name adds to its target's: `.`, `.tmp-`, a pid (at most 10 digits),
+/// `-` and a counter (at most 20 digits).
+const TEMPORARY_NAME_EXTRA: usize = 1 + 5 + 10 + 1 + 20;
 
 /// `.<name>.tmp-<pid>-<n>` beside `path`; `n` keeps threads of one process apart.
 fn temporary_path_for(path: &Path) -> PathBuf {
@@ -494,6 +512,15 @@ mod tests {
             .map(|e| e.file_name())
             .collect();
         assert_eq!(names, vec![std::ffi::OsString::from("b.json")]);
+    }
+
+    #[test]
+    fn names_whose_temporary_would_be_too_long_are_refused() {
+        let fits = format!("{}.gltf", "a".repeat(NAME_MAX - TEMPORARY_NAME_EXTRA - 5));
+        assert!(check_target(Path::new(&fits)).is_ok());
+        let long = format!("a{fits}");
+        let error = check_target(Path::new(&long)).expect_err("too long");
+        assert!(error.to_string().contains("219 bytes long"), "{error}");
     }
 
     #[test]
