@@ -34,6 +34,7 @@ pub(crate) fn load_bytes(bytes: &[u8], files: Option<&Files>) -> Result<Scene, I
         .map_err(|e| ImportError::Gltf(one_line(&e.to_string())))?;
     check_position_indices(&root)?;
     validate(&root)?;
+    crate::memory::check_zero_filled(&root, crate::memory::available())?;
     let document = gltf::Document::from_json_without_validation(root);
     check_buffer_uris(&document)?;
     let mut buffers = read_buffers(&document, files, blob.map(<[u8]>::to_vec))?;

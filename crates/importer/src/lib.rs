@@ -20,6 +20,7 @@ mod compressed;
 mod draco;
 mod files;
 mod gltf_in;
+mod memory;
 mod meshopt;
 mod obj_in;
 mod obj_texture;
