@@ -297,14 +297,15 @@ pub fn check_target(path: &Path) -> Result<(), ExportError> {
         })
     };
     let name_bytes = path.file_name().map_or(0, |n| n.as_encoded_bytes().len());
-    if name_bytes + TEMPORARY_NAME_EXTRA > NAME_MAX {
+    let extra = temporary_name_extra();
+    if name_bytes + extra > NAME_MAX {
         return Err(ExportError::Io {
             path: path.to_path_buf(),
             source: std::io::Error::other(format!(
                 "its file name is {name_bytes} bytes long: its temporary \
-                 `.NAME.tmp-PID-N` needs up to {TEMPORARY_NAME_EXTRA} more, past the \
-                 {NAME_MAX}-byte limit of a file name (at most {} bytes)",
-                NAME_MAX - TEMPORARY_NAME_EXTRA
+                 `.NAME.tmp-PID-N` needs up to {extra} more, past the {NAME_MAX}-byte \
+                 limit of a file name (at most {} bytes)",
+                NAME_MAX - extra
             )),
         });
     }
@@ -331,9 +332,17 @@ pub fn check_target(path: &Path) -> Result<(), ExportError> {
 
 /// The longest file name most file systems take (Linux's `NAME_MAX`).
 const NAME_MAX: usize = 255;
-/// What a temporary's name adds to its target's: `.`, `.tmp-`, a pid (at most 10 digits),
-/// `-` and a counter (at most 20 digits).
-const TEMPORARY_NAME_EXTRA: usize = 1 + 5 + 10 + 1 + 20;
+/// What a temporary's name adds to its target's: `.`, `.tmp-`, a pid (as many digits as
+/// the system's largest, `/proc/sys/kernel/pid_max`; 10 where that cannot be read), `-` and
+/// a counter (4 digits: a bake stages and backs up far fewer files; a longer one fails
+/// when its temporary is created, before anything is replaced).
+fn temporary_name_extra() -> usize {
+    let pid_digits = fs::read_to_string("/proc/sys/kernel/pid_max")
+        .ok()
+        .and_then(|max| max.trim().parse::<u64>().ok())
+        .map_or(10, |max| max.saturating_sub(1).max(1).to_string().len());
+    1 + 5 + pid_digits + 1 + 4
+}
 
 /// `.<name>.tmp-<pid>-<n>` beside `path`; `n` keeps threads of one process apart.
 fn temporary_path_for(path: &Path) -> PathBuf {
@@ -516,11 +525,20 @@ mod tests {
 
     #[test]
     fn names_whose_temporary_would_be_too_long_are_refused() {
-        let fits = format!("{}.gltf", "a".repeat(NAME_MAX - TEMPORARY_NAME_EXTRA - 5));
+        let extra = temporary_name_extra();
+        assert!((13..=21).contains(&extra), "{extra}");
+        let fits = format!("{}.gltf", "a".repeat(NAME_MAX - extra - 5));
         assert!(check_target(Path::new(&fits)).is_ok());
+        // The longest name that passes has room for its temporary.
+        let dir = tempfile::tempdir().expect("temp dir");
+        let mut set = OutputSet::new();
+        set.stage(&dir.path().join(&fits), b"x")
+            .expect("its temporary fits");
+        set.commit().expect("renamed");
         let long = format!("a{fits}");
         let error = check_target(Path::new(&long)).expect_err("too long");
-        assert!(error.to_string().contains("219 bytes long"), "{error}");
+        let says = format!("{} bytes long", NAME_MAX - extra + 1);
+        assert!(error.to_string().contains(&says), "{error}");
     }
 
     #[test]
