@@ -444,11 +444,7 @@ fn main() -> ExitCode {
     }
     let cli = match Cli::try_parse().and_then(check_solver_options) {
         Ok(cli) => cli,
-        Err(e) => {
-            let code = if e.use_stderr() { 2 } else { 0 };
-            let _ = e.print();
-            return ExitCode::from(code);
-        }
+        Err(e) => return usage_error(&e, "bake"),
     };
     if let Some(threads) = cli.threads {
         if let Err(e) = rayon::ThreadPoolBuilder::new()
@@ -477,6 +473,38 @@ fn main() -> ExitCode {
     }
 }
 
+/// A clap error as one line on stderr, exit 2 (`--help` and `--version`, which clap reports
+/// as errors too, are printed as they are, exit 0). clap's block (the error, a tip, the usage
+/// line, "for more information") becomes `error: <error> (<tip>; usage: <usage>; see
+/// `<command> --help`)`.
+pub(crate) fn usage_error(e: &clap::Error, command: &str) -> ExitCode {
+    if !e.use_stderr() {
+        let _ = e.print();
+        return ExitCode::SUCCESS;
+    }
+    eprintln!("{}", usage_line(&e.render().to_string(), command));
+    ExitCode::from(2)
+}
+
+/// See [`usage_error`].
+fn usage_line(block: &str, command: &str) -> String {
+    let mut lines = block.lines().map(str::trim).filter(|l| !l.is_empty());
+    let first = lines.next().unwrap_or("error: invalid usage");
+    let first = first.strip_prefix("error: ").unwrap_or(first);
+    let mut notes: Vec<String> = Vec::new();
+    for line in lines {
+        if let Some(usage) = line.strip_prefix("Usage: ") {
+            notes.push(format!("usage: {usage}"));
+        } else if line.starts_with("For more information") {
+            continue;
+        } else {
+            notes.push(line.to_string());
+        }
+    }
+    notes.push(format!("see `{command} --help`"));
+    format!("error: {first} ({})", notes.join("; "))
+}
+
 /// `--tolerance` and `--max-iterations` tune the iterative solver only: a usage error otherwise
 /// (rather than silently ignoring them).
 fn check_solver_options(cli: Cli) -> Result<Cli, clap::Error> {
@@ -503,4 +531,21 @@ fn check_solver_options(cli: Cli) -> Result<Cli, clap::Error> {
         }
     }
     Ok(cli)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clap_blocks_become_one_line() {
+        let block = "error: unexpected argument '--foo' found\n\n  tip: to pass '--foo' as a \
+                     value, use '-- --foo'\n\nUsage: bake [OPTIONS] <INPUT> <OUTPUT>\n\nFor more \
+                     information, try '--help'.\n";
+        assert_eq!(
+            usage_line(block, "bake"),
+            "error: unexpected argument '--foo' found (tip: to pass '--foo' as a value, use \
+             '-- --foo'; usage: bake [OPTIONS] <INPUT> <OUTPUT>; see `bake --help`)"
+        );
+    }
 }

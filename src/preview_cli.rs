@@ -62,11 +62,7 @@ struct PreviewCli {
 pub fn main(args: impl IntoIterator<Item = OsString>) -> ExitCode {
     let cli = match PreviewCli::try_parse_from(args) {
         Ok(cli) => cli,
-        Err(e) => {
-            let code = if e.use_stderr() { 2 } else { 0 };
-            let _ = e.print();
-            return ExitCode::from(code);
-        }
+        Err(e) => return crate::usage_error(&e, "bake preview"),
     };
     match run(&cli) {
         Ok(()) => ExitCode::SUCCESS,
@@ -123,6 +119,8 @@ fn run(cli: &PreviewCli) -> Result<(), (u8, String)> {
         view: cli.view,
         ..bake_job::preview::Options::default()
     };
+    bake_job::check_preview_output(&cli.input, &cli.output)
+        .map_err(|failure| (failure.code, failure.line()))?;
     let code = |e: &bake_job::preview::PreviewError| if e.is_input_error() { 1 } else { 3 };
     let rendered = bake_job::preview::render_file(&cli.input, &options)
         .map_err(|e| (code(&e), e.to_string()))?;

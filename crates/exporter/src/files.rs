@@ -57,16 +57,80 @@ pub(crate) fn uri_for_file_name(path: &Path) -> String {
     uri
 }
 
+/// The file operations an [`OutputSet`] performs, one call each, so that a test can make any
+/// one of them fail (EBUSY on a bind-mounted target, EPERM in a sticky folder, EROFS) where
+/// permissions cannot (CI runs as root). [`RealFiles`] is the one production implementation:
+/// every default method is the plain `std::fs` call.
+pub trait FileOps: std::fmt::Debug + Send + Sync {
+    /// Creates (truncates) a file to write a temporary into.
+    fn create(&self, path: &Path) -> std::io::Result<fs::File> {
+        fs::File::create(path)
+    }
+    /// Renames `from` to `to`, replacing `to`.
+    fn rename(&self, from: &Path, to: &Path) -> std::io::Result<()> {
+        fs::rename(from, to)
+    }
+    /// A second name for `from` (a symbolic link itself, not what it points to).
+    fn hard_link(&self, from: &Path, to: &Path) -> std::io::Result<()> {
+        fs::hard_link(from, to)
+    }
+    /// Copies `from` to the new file `to` where a hard link is impossible (another mount, a
+    /// file system without links); a symbolic link is copied as a link.
+    fn copy(&self, from: &Path, to: &Path) -> std::io::Result<()> {
+        copy_file_or_link(from, to)
+    }
+    fn remove_file(&self, path: &Path) -> std::io::Result<()> {
+        fs::remove_file(path)
+    }
+}
+
+/// The file system itself.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct RealFiles;
+
+impl FileOps for RealFiles {}
+
+#[cfg(unix)]
+fn copy_file_or_link(from: &Path, to: &Path) -> std::io::Result<()> {
+    if fs::symlink_metadata(from)?.file_type().is_symlink() {
+        return std::os::unix::fs::symlink(fs::read_link(from)?, to);
+    }
+    fs::copy(from, to).map(|_| ())
+}
+
+#[cfg(not(unix))]
+fn copy_file_or_link(from: &Path, to: &Path) -> std::io::Result<()> {
+    fs::copy(from, to).map(|_| ())
+}
+
 /// The files of one bake, written as one transaction: [`OutputSet::stage`] writes each file
 /// to a temporary beside its target (synced to disk), [`OutputSet::commit`] renames them all
 /// into place in staging order. Until the first rename nothing the user named has changed;
 /// dropping an uncommitted set (any error, or a panic unwinding) removes every temporary.
+/// A commit that fails at any step puts every file it had replaced back (the previous file
+/// is kept under a temporary's name until the whole set is in place): the set is all
+/// previous or all new.
 ///
-/// Temporaries are named `.<name>.tmp-<pid>-<n>` (see [`remove_stale_temporaries`]).
-#[derive(Debug, Default)]
+/// Temporaries (and those backups) are named `.<name>.tmp-<pid>-<n>` (see
+/// [`remove_stale_temporaries`]).
+#[derive(Debug)]
 pub struct OutputSet {
     /// (temporary, target), in the order they are renamed.
     staged: Vec<(PathBuf, PathBuf)>,
+    files: std::sync::Arc<dyn FileOps>,
+}
+
+impl Default for OutputSet {
+    fn default() -> Self {
+        OutputSet::with_files(std::sync::Arc::new(RealFiles))
+    }
+}
+
+/// A target replaced by a commit: what to put back if a later step fails.
+struct Replaced {
+    target: PathBuf,
+    /// The previous file, under a temporary's name; `None`: there was none.
+    backup: Option<PathBuf>,
 }
 
 impl OutputSet {
@@ -74,12 +138,18 @@ impl OutputSet {
         OutputSet::default()
     }
 
+    /// A set whose every file operation goes through `files` (tests inject failures).
+    pub fn with_files(files: std::sync::Arc<dyn FileOps>) -> OutputSet {
+        OutputSet {
+            staged: Vec::new(),
+            files,
+        }
+    }
+
     /// Writes `bytes` to a temporary for `path`; renamed by [`OutputSet::commit`] after every
     /// file staged before it.
     pub(crate) fn stage(&mut self, path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
-        let temporary = write_temporary(path, bytes)?;
-        self.staged.push((temporary, path.to_path_buf()));
-        Ok(())
+        self.stage_with(path, |w| w.write_all(bytes))
     }
 
     /// Writes a file through `write` (buffered) to a temporary for `path`, for files too
@@ -89,7 +159,7 @@ impl OutputSet {
         path: &Path,
         write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
     ) -> Result<(), ExportError> {
-        let temporary = write_temporary_with(path, write)?;
+        let temporary = write_temporary_with(&*self.files, path, write)?;
         self.staged.push((temporary, path.to_path_buf()));
         Ok(())
     }
@@ -105,45 +175,173 @@ impl OutputSet {
     }
 
     /// Renames every temporary into place, in staging order, and returns the targets. Checks
-    /// first that no target is a directory (a rename onto one would fail half-way through the
-    /// set). The renames themselves are the one window in which a crash (kill -9, power loss)
+    /// first that no target is a directory or a special file (a rename onto one would fail
+    /// half-way through the set, or replace a device). Each existing target is first given a
+    /// second name (a hard link, or a copy where links cannot be made), so that if a later
+    /// rename fails every replaced target is put back and every new one removed: the error
+    /// comes with the previous set intact. Only a crash (kill -9, power loss) in the renames
     /// can leave a set that mixes new and previous files.
     pub fn commit(mut self) -> Result<Vec<PathBuf>, ExportError> {
         for (_, target) in &self.staged {
             check_target(target)?;
         }
         let staged = std::mem::take(&mut self.staged);
-        let mut renamed = Vec::with_capacity(staged.len());
+        let mut replaced: Vec<Replaced> = Vec::with_capacity(staged.len());
         let mut rest = staged.into_iter();
-        for (temporary, target) in rest.by_ref() {
-            if let Err(error) = rename_into_place(&temporary, &target) {
-                rest.for_each(|(t, _)| remove_quietly(&t));
-                return Err(error);
+        while let Some((temporary, target)) = rest.next() {
+            let step = self.replace(&temporary, &target);
+            match step {
+                Ok(backup) => replaced.push(Replaced { target, backup }),
+                Err(error) => {
+                    let _ = self.files.remove_file(&temporary);
+                    rest.for_each(|(t, _)| {
+                        let _ = self.files.remove_file(&t);
+                    });
+                    return Err(self.roll_back(replaced, error));
+                }
             }
-            renamed.push(target);
         }
-        Ok(renamed)
+        for done in &replaced {
+            if let Some(backup) = &done.backup {
+                // Best effort: a backup left behind is a stale temporary for the next bake.
+                let _ = self.files.remove_file(backup);
+            }
+        }
+        Ok(replaced.into_iter().map(|r| r.target).collect())
+    }
+
+    /// Keeps the previous `target` (if any) under a temporary's name, then renames
+    /// `temporary` onto it. Returns the backup's path.
+    fn replace(&self, temporary: &Path, target: &Path) -> Result<Option<PathBuf>, ExportError> {
+        let io = |source| ExportError::Io {
+            path: target.to_path_buf(),
+            source,
+        };
+        let backup = match fs::symlink_metadata(target) {
+            Ok(_) => {
+                let backup = temporary_path_for(target);
+                if self.files.hard_link(target, &backup).is_err() {
+                    if let Err(error) = self.files.copy(target, &backup) {
+                        let _ = self.files.remove_file(&backup);
+                        return Err(io(error));
+                    }
+                }
+                Some(backup)
+            }
+            Err(error) if error.kind() == std::io::ErrorKind::NotFound => None,
+            Err(error) => return Err(io(error)),
+        };
+        if let Err(error) = self.files.rename(temporary, target) {
+            if let Some(backup) = &backup {
+                let _ = self.files.remove_file(backup);
+            }
+            return Err(io(error));
+        }
+        Ok(backup)
+    }
+
+    /// Puts back every target `replaced` changed, last first, and returns `error` (saying
+    /// that the previous files are in place, or which could not be put back and where it is).
+    fn roll_back(&self, replaced: Vec<Replaced>, error: ExportError) -> ExportError {
+        let mut failures = Vec::new();
+        for done in replaced.into_iter().rev() {
+            let restored = match &done.backup {
+                Some(backup) => self.files.rename(backup, &done.target),
+                None => self.files.remove_file(&done.target),
+            };
+            if let Err(e) = restored {
+                failures.push(match &done.backup {
+                    Some(backup) => format!(
+                        "{} could not be put back ({e}; the previous file is {})",
+                        done.target.display(),
+                        backup.display()
+                    ),
+                    None => format!(
+                        "the new {} could not be removed ({e})",
+                        done.target.display()
+                    ),
+                });
+            }
+        }
+        let ExportError::Io { path, source } = error else {
+            return error;
+        };
+        let outcome = if failures.is_empty() {
+            "every output was left as it was".to_string()
+        } else {
+            failures.join("; ")
+        };
+        ExportError::Io {
+            path,
+            source: std::io::Error::new(source.kind(), format!("{source}; {outcome}")),
+        }
     }
 }
 
 impl Drop for OutputSet {
     fn drop(&mut self) {
         for (temporary, _) in &self.staged {
-            remove_quietly(temporary);
+            let _ = self.files.remove_file(temporary);
         }
     }
 }
 
-/// A target may be a file (replaced) or not exist yet; a directory (or anything else that
-/// is not a file or a link) cannot be replaced by a rename.
+/// A target may be a file (replaced) or not exist yet, or be a link to a file (the link is
+/// replaced). A directory, a device, a FIFO or a socket, or a link to one (`/dev/stdout`),
+/// cannot be replaced by a rename without destroying it: refused. Outputs are never streamed.
 pub fn check_target(path: &Path) -> Result<(), ExportError> {
-    match fs::symlink_metadata(path) {
-        Ok(meta) if !(meta.is_file() || meta.file_type().is_symlink()) => Err(ExportError::Io {
+    let refuse = |why: &str| {
+        Err(ExportError::Io {
             path: path.to_path_buf(),
-            source: std::io::Error::other("it exists and is not a regular file"),
-        }),
-        _ => Ok(()),
+            source: std::io::Error::other(why.to_string()),
+        })
+    };
+    let name_bytes = path.file_name().map_or(0, |n| n.as_encoded_bytes().len());
+    let extra = temporary_name_extra();
+    if name_bytes + extra > NAME_MAX {
+        return Err(ExportError::Io {
+            path: path.to_path_buf(),
+            source: std::io::Error::other(format!(
+                "its file name is {name_bytes} bytes long: its temporary \
+                 `.NAME.tmp-PID-N` needs up to {extra} more, past the {NAME_MAX}-byte \
+                 limit of a file name (at most {} bytes)",
+                NAME_MAX - extra
+            )),
+        });
     }
+    let Ok(meta) = fs::symlink_metadata(path) else {
+        return Ok(());
+    };
+    if meta.is_file() {
+        return Ok(());
+    }
+    if !meta.file_type().is_symlink() {
+        return refuse("it exists and is not a regular file");
+    }
+    match fs::metadata(path) {
+        // A dangling link is replaced like a missing file.
+        Err(_) => Ok(()),
+        Ok(target) if target.is_file() => Ok(()),
+        Ok(_) => refuse(
+            "it is a link to something that is not a regular file (a device, a FIFO, a \
+             directory); outputs replace their target by a rename and are never streamed: \
+             name a regular file",
+        ),
+    }
+}
+
+/// The longest file name most file systems take (Linux's `NAME_MAX`).
+const NAME_MAX: usize = 255;
+/// What a temporary's name adds to its target's: `.`, `.tmp-`, a pid (as many digits as
+/// the system's largest, `/proc/sys/kernel/pid_max`; 10 where that cannot be read), `-` and
+/// a counter (4 digits: a bake stages and backs up far fewer files; a longer one fails
+/// when its temporary is created, before anything is replaced).
+fn temporary_name_extra() -> usize {
+    let pid_digits = fs::read_to_string("/proc/sys/kernel/pid_max")
+        .ok()
+        .and_then(|max| max.trim().parse::<u64>().ok())
+        .map_or(10, |max| max.saturating_sub(1).max(1).to_string().len());
+    1 + 5 + pid_digits + 1 + 4
 }
 
 /// `.<name>.tmp-<pid>-<n>` beside `path`; `n` keeps threads of one process apart.
@@ -222,18 +420,14 @@ pub fn remove_stale_temporaries(targets: &[PathBuf]) -> usize {
     removed
 }
 
-/// Writes the temporary for `path` and returns its path; removes it again on error.
-pub(crate) fn write_temporary(path: &Path, bytes: &[u8]) -> Result<PathBuf, ExportError> {
-    write_temporary_with(path, |w| w.write_all(bytes))
-}
-
 /// Writes a temporary for `path` through `write` (buffered), synced; removed on failure.
 fn write_temporary_with(
+    files: &dyn FileOps,
     path: &Path,
     write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<PathBuf, ExportError> {
     let temporary = temporary_path_for(path);
-    let result = fs::File::create(&temporary).and_then(|file| {
+    let result = files.create(&temporary).and_then(|file| {
         let mut buffered = std::io::BufWriter::with_capacity(1 << 20, file);
         write(&mut buffered)?;
         let file = buffered.into_inner().map_err(|e| e.into_error())?;
@@ -242,28 +436,13 @@ fn write_temporary_with(
     match result {
         Ok(()) => Ok(temporary),
         Err(source) => {
-            remove_quietly(&temporary);
+            let _ = files.remove_file(&temporary);
             Err(ExportError::Io {
                 path: path.to_path_buf(),
                 source,
             })
         }
     }
-}
-
-pub(crate) fn rename_into_place(temporary: &Path, path: &Path) -> Result<(), ExportError> {
-    fs::rename(temporary, path).map_err(|source| {
-        remove_quietly(temporary);
-        ExportError::Io {
-            path: path.to_path_buf(),
-            source,
-        }
-    })
-}
-
-/// Best-effort clean-up of a temporary; the error being reported matters more.
-pub(crate) fn remove_quietly(path: &Path) {
-    let _ = fs::remove_file(path);
 }
 
 #[cfg(test)]
@@ -342,6 +521,24 @@ mod tests {
             .map(|e| e.file_name())
             .collect();
         assert_eq!(names, vec![std::ffi::OsString::from("b.json")]);
+    }
+
+    #[test]
+    fn names_whose_temporary_would_be_too_long_are_refused() {
+        let extra = temporary_name_extra();
+        assert!((13..=21).contains(&extra), "{extra}");
+        let fits = format!("{}.gltf", "a".repeat(NAME_MAX - extra - 5));
+        assert!(check_target(Path::new(&fits)).is_ok());
+        // The longest name that passes has room for its temporary.
+        let dir = tempfile::tempdir().expect("temp dir");
+        let mut set = OutputSet::new();
+        set.stage(&dir.path().join(&fits), b"x")
+            .expect("its temporary fits");
+        set.commit().expect("renamed");
+        let long = format!("a{fits}");
+        let error = check_target(Path::new(&long)).expect_err("too long");
+        let says = format!("{} bytes long", NAME_MAX - extra + 1);
+        assert!(error.to_string().contains(&says), "{error}");
     }
 
     #[test]

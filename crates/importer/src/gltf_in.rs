@@ -34,6 +34,7 @@ pub(crate) fn load_bytes(bytes: &[u8], files: Option<&Files>) -> Result<Scene, I
         .map_err(|e| ImportError::Gltf(one_line(&e.to_string())))?;
     check_position_indices(&root)?;
     validate(&root)?;
+    crate::memory::check_zero_filled(&root, crate::memory::available())?;
     let document = gltf::Document::from_json_without_validation(root);
     check_buffer_uris(&document)?;
     let mut buffers = read_buffers(&document, files, blob.map(<[u8]>::to_vec))?;
@@ -73,8 +74,18 @@ fn read_buffers(
                 buffers.push(gltf::buffer::Data(Vec::new()));
                 continue;
             }
-            (None, _) => gltf::buffer::Data::from_source_and_blob(source, None, &mut blob)
-                .map_err(|e| gltf_error(&e))?,
+            (None, _) => {
+                let named = match &source {
+                    gltf::buffer::Source::Uri(uri) => format!(" (URI {})", short_uri(uri)),
+                    gltf::buffer::Source::Bin => " (the GLB's BIN chunk)".into(),
+                };
+                gltf::buffer::Data::from_source_and_blob(source, None, &mut blob).map_err(|e| {
+                    let ImportError::Gltf(text) = gltf_error(&e) else {
+                        return gltf_error(&e);
+                    };
+                    ImportError::Gltf(format!("buffer {index}{named}: {text}"))
+                })?
+            }
             (Some(_), None) => {
                 return Err(ImportError::Gltf(
                     "a buffer refers to an external file, which cannot be read without a \
@@ -110,11 +121,23 @@ fn read_buffers(
     Ok(buffers)
 }
 
+/// A URI as an error line shows it: quoted, and cut after 60 characters (a data URI can
+/// be megabytes long).
+fn short_uri(uri: &str) -> String {
+    const SHOWN: usize = 60;
+    match uri.char_indices().nth(SHOWN) {
+        Some((cut, _)) => format!("{:?}… ({} bytes)", &uri[..cut], uri.len()),
+        None => format!("{uri:?}"),
+    }
+}
+
 /// Splits a GLB container (glTF 2.0, "GLB File Format": 12-byte header, JSON chunk,
 /// optional BIN chunk) into its JSON and binary parts; any other input is the JSON itself.
 fn split_container(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), ImportError> {
     if !bytes.starts_with(b"glTF") {
-        return Ok((bytes, None));
+        // A UTF-8 byte-order mark before the JSON (some Windows editors write one): the
+        // glTF spec forbids it, but what follows is the document.
+        return Ok((bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes), None));
     }
     let bad = |what: &str| ImportError::Gltf(format!("malformed GLB container: {what}"));
     let word = |at: usize| -> Option<u32> {
@@ -143,6 +166,9 @@ fn split_container(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), ImportError> 
     let (kind, json, next) = chunk(12).ok_or_else(|| bad("truncated JSON chunk"))?;
     if kind != JSON {
         return Err(bad("the first chunk is not JSON"));
+    }
+    if json.is_empty() {
+        return Err(bad("the JSON chunk is empty (its length is 0)"));
     }
     let bin = if next >= bytes.len() {
         None

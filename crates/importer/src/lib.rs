@@ -20,6 +20,7 @@ mod compressed;
 mod draco;
 mod files;
 mod gltf_in;
+mod memory;
 mod meshopt;
 mod obj_in;
 mod obj_texture;
@@ -268,6 +269,14 @@ pub(crate) fn check_material(material: &Material, what: &str) -> Result<(), Impo
         return Err(invalid(format!(
             "colour is not finite (ρ {:?}, e {:?})",
             material.rho, material.emission
+        )));
+    }
+    // Radiosity b ≥ e is written as f32: an emission past f32's range is bad input here,
+    // not a failed output after the whole bake.
+    if let Some(e) = material.emission.iter().find(|e| **e > f64::from(f32::MAX)) {
+        return Err(invalid(format!(
+            "emission {e:e} exceeds the largest value glTF can hold (f32, {:e})",
+            f32::MAX
         )));
     }
     if material.rho.iter().any(|r| !(0.0..=1.0).contains(r)) {

@@ -94,6 +94,7 @@ pub(crate) fn load(
         authored_image_of: HashMap::new(),
         warnings: Vec::new(),
     };
+    loader.check_decoded_total(used)?;
     for (m, material) in materials.iter_mut().enumerate() {
         if !used.get(m).copied().unwrap_or(false) {
             continue;
@@ -157,6 +158,41 @@ impl Loader<'_> {
     fn texture_name(&self, t: usize) -> String {
         let name = self.root.textures.get(t).and_then(|x| x.name.as_deref());
         crate::describe("texture", name, t)
+    }
+
+    /// Every image the materials in use read is decoded and kept: their decoded size (from
+    /// each file's header) is totalled against the memory available before any is decoded
+    /// (each is within `MAX_TEXELS`, but a few small PNGs can name gigabytes). An image
+    /// that cannot be read or sized here is left to [`Loader::decoded_texture`] to name.
+    fn check_decoded_total(&mut self, used: &[bool]) -> Result<(), ImportError> {
+        let mut sources = Vec::new();
+        let in_use = (0..self.root.materials.len()).filter(|&m| used.get(m) == Some(&true));
+        for m in in_use {
+            for (t, _, _) in references(self.root, m).into_iter().flatten() {
+                let source = self
+                    .root
+                    .textures
+                    .get(t)
+                    .and_then(|json| crate::compressed::texture_source(self.root, json).ok());
+                if let Some(source) = source.filter(|s| !sources.contains(s)) {
+                    sources.push(source);
+                }
+            }
+        }
+        let mut total: u64 = 0;
+        for &source in &sources {
+            let Ok(encoded) = self.authored_image(source) else {
+                continue;
+            };
+            if let Some((w, h)) = dimensions(&self.authored.images[encoded].bytes) {
+                total = total.saturating_add(crate::memory::decoded_image_bytes(w, h));
+            }
+        }
+        crate::memory::check(
+            &format!("the {} images the materials use, decoded,", sources.len()),
+            total,
+            crate::memory::available(),
+        )
     }
 
     /// Texture `t` of the file, decoded (sRGB → linear) with its sampler's filter and wraps.
@@ -410,6 +446,14 @@ fn image_bytes(
         }
     };
     Ok(bytes.to_vec())
+}
+
+/// A PNG's or JPEG's width and height, from its header.
+fn dimensions(bytes: &[u8]) -> Option<(u32, u32)> {
+    let format = image::guess_format(bytes).ok()?;
+    image::ImageReader::with_format(std::io::Cursor::new(bytes), format)
+        .into_dimensions()
+        .ok()
 }
 
 /// Decodes PNG or JPEG `bytes` (checked by [`Loader::authored_image`]) of file image

@@ -17,6 +17,7 @@ pub mod report;
 mod summary;
 
 use anyhow::{anyhow, Context};
+pub use outputs::check_preview_output;
 use outputs::Plan;
 use std::path::PathBuf;
 use std::time::Instant;

@@ -146,3 +146,12 @@ pub(crate) fn stage_bakes(
     }
     Ok((vertex_files, lightmap_files))
 }
+
+/// `bake preview IN PNG`: the PNG may be neither a file the preview reads (IN, its buffers,
+/// its textures: exit 2, as for a bake) nor something a rename would destroy (a device, a
+/// FIFO, a link to one: exit 3, as for a bake's outputs). Checked before rendering.
+pub fn check_preview_output(input: &Path, output: &Path) -> Result<(), Failure> {
+    exporter::check_target(output).map_err(|e| internal(anyhow!(e)))?;
+    let inputs = preview::input_files(input);
+    exporter::check_distinct(&[output.to_path_buf()], &inputs).map_err(same_file)
+}
