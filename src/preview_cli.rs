@@ -14,9 +14,13 @@ use std::process::ExitCode;
 /// per element, a smooth one the interpolated vertex values. Single-sided triangles are culled
 /// from behind (glTF's rule), so the camera looks into a closed room through its near wall.
 ///
-/// Camera: the file's first perspective camera node, if any; otherwise (or with --view) a 45°
-/// camera looking along the view direction (default 0,0,-1: from the +Z side), backed off
-/// until the scene's bounding box fills the image. Output: 8-bit sRGB PNG, written atomically;
+/// A lightmap bake (`MOZ_lightmap` on TEXCOORD_1) is drawn through its lightmap as a lit viewer
+/// shows it: clamp((e + ρ H) × exposure, 0, 1), the exposure the bake recorded (or --exposure).
+///
+/// Camera: --eye looking at --look-at (--fov, default 60°); else the file's first perspective
+/// camera node, if any; otherwise (or with --view) a 45° camera looking along the view
+/// direction (default 0,0,-1: from the +Z side), backed off until the scene's bounding box
+/// fills the image. Output: 8-bit sRGB PNG, written atomically;
 /// the same file and options give the same bytes.
 ///
 /// Exit codes: 0 ok; 1 bad input (unreadable file, nothing to draw, invalid option values);
@@ -53,6 +57,19 @@ struct PreviewCli {
     /// Overrides a camera node; e.g. `--view 0,-1,-1` to look down at 45°.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_view, allow_hyphen_values = true)]
     view: Option<[f64; 3]>,
+    /// Stand here (with --look-at), e.g. inside a room.
+    ///
+    /// Overrides --view and a camera node; single-sided walls are seen from their front.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_view, allow_hyphen_values = true,
+          requires = "look_at")]
+    eye: Option<[f64; 3]>,
+    /// Look at this point from --eye.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_view, allow_hyphen_values = true,
+          requires = "eye")]
+    look_at: Option<[f64; 3]>,
+    /// Vertical field of view of --eye/--look-at, in degrees [default: 60].
+    #[arg(long, value_name = "DEG", requires = "eye")]
+    fov: Option<f64>,
     /// Print nothing but errors.
     #[arg(long, short)]
     quiet: bool,
@@ -117,6 +134,9 @@ fn run(cli: &PreviewCli) -> Result<(), (u8, String)> {
         height: cli.height,
         colors,
         view: cli.view,
+        eye: cli.eye,
+        look_at: cli.look_at,
+        fov: cli.fov,
         ..bake_job::preview::Options::default()
     };
     bake_job::check_preview_output(&cli.input, &cli.output)

@@ -133,6 +133,10 @@ pub struct LightmapBake<'a> {
     /// is already in the lightmap: a lit viewer would count it twice (`--keep-lights`, for
     /// engines that want them for specular only).
     pub keep_lights: bool,
+    /// The exposure the vertex bake's `COLOR_0` used (`--exposure`, or `auto`'s choice),
+    /// recorded in the extras so a viewer (`bake preview`) shows the lightmap bake as bright
+    /// as the vertex bake: displayed value = clamp((e + ρ H) × exposure, 0, 1).
+    pub exposure: f64,
 }
 
 /// What was written.
@@ -300,7 +304,14 @@ pub fn stage_lightmap_gltf(
         .collect();
     let scales: Vec<f64> = pngs.iter().map(|p| p.scale).collect();
     let clipped: Vec<u64> = pngs.iter().map(|p| p.clipped).collect();
-    let extras = extras(lightmap, (&scales, &clipped), &png_uris, &exr_paths).to_string();
+    let extras = extras(
+        lightmap,
+        bake.exposure,
+        (&scales, &clipped),
+        &png_uris,
+        &exr_paths,
+    )
+    .to_string();
     let extras =
         serde_json::value::RawValue::from_string(extras).map_err(|e| ExportError::Encode {
             what: "glTF extras",
@@ -383,6 +394,7 @@ fn add_lights(root: &mut json::Root, scene: &Scene) {
 /// The root `extras`: what the lightmap is, its units and its files.
 fn extras(
     lightmap: &Lightmap,
+    exposure: f64,
     (png_scales, png_clipped): (&[f64], &[u64]),
     png_uris: &[Option<String>],
     exrs: &[PathBuf],
@@ -407,6 +419,7 @@ fn extras(
             "quantity": "irradiance",
             "units": LIGHTMAP_UNITS,
             "texcoord": 1,
+            "exposure": exposure,
             "exr": files::uri_for_file_name(exr),
             "exr_encoding": "linear RGB, 32-bit float, H per texel",
             "png": png_uri,

@@ -139,6 +139,7 @@ pub(crate) fn stage_bakes(
             scene,
             lightmap: built,
             keep_lights: job.keep_lights,
+            exposure,
         };
         exporter::stage_lightmap_gltf(&mut lightmap_files, &paths, &lightmap_bake)
             .with_context(|| format!("cannot write {}", paths.gltf.display()))

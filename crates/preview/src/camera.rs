@@ -33,13 +33,7 @@ impl Camera {
     /// finite.
     pub fn framing(bounds: &Bounds, view: Vec3, aspect: f64) -> Option<Camera> {
         let forward = math::normalize(view)?;
-        let world_up = if forward[1].abs() > 0.999 {
-            [0.0, 0.0, -forward[1].signum()]
-        } else {
-            [0.0, 1.0, 0.0]
-        };
-        let right = math::normalize(math::cross(forward, world_up))?;
-        let up = math::cross(right, forward);
+        let (right, up) = basis(forward)?;
         let centre = math::scale(math::add(bounds.min, bounds.max), 0.5);
         let tan_y = (FRAMING_YFOV / 2.0).tan() * (1.0 - FRAMING_MARGIN);
         let tan_x = tan_y * aspect;
@@ -83,6 +77,28 @@ impl Camera {
             yfov: FRAMING_YFOV,
             aspect,
             znear,
+        })
+    }
+
+    /// A camera at `eye` looking at `target` with vertical field of view `yfov` (radians), the
+    /// image's up as close to the world's +Y as the view allows (−Z when looking straight up
+    /// or down). Geometry nearer than 1e-4 of the eye–target distance is clipped. `None` when
+    /// the points coincide or are not finite.
+    pub fn looking_at(eye: Vec3, target: Vec3, yfov: f64, aspect: f64) -> Option<Camera> {
+        if !eye.iter().chain(&target).all(|v| v.is_finite()) {
+            return None;
+        }
+        let offset = math::sub(target, eye);
+        let forward = math::normalize(offset)?;
+        let (right, up) = basis(forward)?;
+        Some(Camera {
+            eye,
+            right,
+            up,
+            forward,
+            yfov,
+            aspect,
+            znear: math::length(offset) * 1e-4,
         })
     }
 
@@ -139,5 +155,46 @@ impl Camera {
     pub fn project(&self, p: Vec3, width: u32, height: u32) -> Option<[f64; 2]> {
         let v = self.to_view(p);
         (v[2] >= self.znear).then(|| self.view_to_pixel(v, width, height))
+    }
+}
+
+/// Right and up for the unit viewing direction `forward`: up as close to the world's +Y as
+/// the view allows (−Z when looking straight up or down).
+fn basis(forward: Vec3) -> Option<(Vec3, Vec3)> {
+    let world_up = if forward[1].abs() > 0.999 {
+        [0.0, 0.0, -forward[1].signum()]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let right = math::normalize(math::cross(forward, world_up))?;
+    Some((right, math::cross(right, forward)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The target projects to the image's centre, a point on the camera's up axis above it,
+    /// and the field of view's edge to the image's top edge.
+    #[test]
+    fn looking_at_centres_the_target() {
+        let (eye, target) = ([1.0, 1.6, 3.5], [6.0, 0.8, 1.0]);
+        let yfov = 75f64.to_radians();
+        let camera = Camera::looking_at(eye, target, yfov, 2.0).expect("a camera");
+        let centre = camera.project(target, 400, 200).expect("in front");
+        assert!((centre[0] - 200.0).abs() < 1e-9 && (centre[1] - 100.0).abs() < 1e-9);
+        let distance = math::length(math::sub(target, eye));
+        let top = math::add(
+            target,
+            math::scale(camera.up, distance * (yfov / 2.0).tan()),
+        );
+        let edge = camera.project(top, 400, 200).expect("in front");
+        assert!(
+            (edge[0] - 200.0).abs() < 1e-9 && edge[1].abs() < 1e-9,
+            "{edge:?}"
+        );
+        assert!(camera.up[1] > 0.0, "up stays up");
+        assert!(Camera::looking_at(eye, eye, yfov, 1.0).is_none());
+        assert!(Camera::looking_at([f64::NAN, 0.0, 0.0], target, yfov, 1.0).is_none());
     }
 }

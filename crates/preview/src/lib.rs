@@ -10,9 +10,16 @@
 //! as glTF requires; that is how the camera looks into a closed room from outside through its
 //! near wall. Colours are interpolated in linear space and sRGB-encoded into 8-bit RGB.
 //!
-//! The camera is a camera node of the file's scene when there is one, otherwise a 45° pinhole
-//! looking along a view direction (default −Z: from the +Z side, glTF's "front") and backed
-//! off until the scene's bounding box fits the image.
+//! A lightmap bake (a material with `MOZ_lightmap`) is drawn through its lightmap as a lit
+//! viewer shows it: clamp((e + ρ H) × exposure, 0, 1), H the lightmap's texel × its
+//! `intensity` at the lightmap's TEXCOORD, ρ the base colour (factor × texture), e the
+//! emission, and the exposure the bake recorded in `extras.bake_lightmap.exposure` (or
+//! `--exposure`): the same values the vertex bake's `COLOR_0` shows.
+//!
+//! The camera is `--eye` looking at `--look-at` when given (to look around inside a room),
+//! else a camera node of the file's scene when there is one, otherwise a 45° pinhole looking
+//! along a view direction (default −Z: from the +Z side, glTF's "front") and backed off until
+//! the scene's bounding box fits the image.
 //!
 //! Public API: [`render_file`] (or [`scene::load`] + [`render_scene`]) and [`write_png`].
 //! Output is deterministic: one sample per pixel centre, f64 throughout, file order.
@@ -27,7 +34,7 @@ pub use camera::{Camera, FRAMING_YFOV};
 /// The `image` crate this one writes with (for reading PNGs back in tests).
 pub use image;
 pub use raster::{render, srgb8, srgb_encode, Frame, RenderStats};
-pub use scene::{load, Bounds, CameraNode, ColorSource, Scene, Triangle, Vertex};
+pub use scene::{load, Bounds, CameraNode, ColorSource, Lightmap, Scene, Triangle, Vertex};
 
 use image::ImageEncoder;
 use std::path::{Path, PathBuf};
@@ -48,6 +55,12 @@ pub struct Options {
     pub colors: ColorSource,
     /// Frame the scene looking along this direction, even when the file has a camera.
     pub view: Option<[f64; 3]>,
+    /// Stand here and look at `look_at` (both needed; overrides `view` and the file's camera),
+    /// e.g. inside a room.
+    pub eye: Option<[f64; 3]>,
+    pub look_at: Option<[f64; 3]>,
+    /// Vertical field of view in degrees for `eye`/`look_at` (default 60).
+    pub fov: Option<f64>,
     /// Linear RGB.
     pub background: [f64; 3],
 }
@@ -59,6 +72,9 @@ impl Default for Options {
             height: 512,
             colors: ColorSource::Color0,
             view: None,
+            eye: None,
+            look_at: None,
+            fov: None,
             background: BACKGROUND,
         }
     }
@@ -71,6 +87,8 @@ pub enum CameraChoice {
     Framing { view: [f64; 3] },
     /// The file's camera node of this name (the first perspective camera of the scene).
     Node { name: Option<String> },
+    /// `--eye` looking at `--look-at`.
+    LookAt { eye: [f64; 3], look_at: [f64; 3] },
 }
 
 impl std::fmt::Display for CameraChoice {
@@ -81,6 +99,11 @@ impl std::fmt::Display for CameraChoice {
             }
             CameraChoice::Node { name: Some(name) } => write!(f, "camera node {name:?}"),
             CameraChoice::Node { name: None } => write!(f, "the file's camera"),
+            CameraChoice::LookAt { eye, look_at } => write!(
+                f,
+                "eye {},{},{} looking at {},{},{}",
+                eye[0], eye[1], eye[2], look_at[0], look_at[1], look_at[2]
+            ),
         }
     }
 }
@@ -132,14 +155,46 @@ impl PreviewError {
     }
 }
 
-/// The camera [`render_scene`] uses: the framing camera along `options.view` when given,
-/// else the scene's first camera node, else the framing camera along [`DEFAULT_VIEW`].
+/// The vertical field of view of an `--eye`/`--look-at` camera unless `--fov` says (degrees).
+pub const DEFAULT_FOV_DEGREES: f64 = 60.0;
+
+/// The camera [`render_scene`] uses: `options.eye` looking at `options.look_at` when given,
+/// else the framing camera along `options.view` when given, else the scene's first camera
+/// node, else the framing camera along [`DEFAULT_VIEW`].
 pub fn choose_camera(
     scene: &Scene,
     options: &Options,
 ) -> Result<(Camera, CameraChoice), PreviewError> {
     check_size(options)?;
     let aspect = f64::from(options.width) / f64::from(options.height);
+    match (options.eye, options.look_at) {
+        (Some(eye), Some(look_at)) => {
+            let fov = options.fov.unwrap_or(DEFAULT_FOV_DEGREES);
+            if !(fov.is_finite() && fov > 0.0 && fov < 180.0) {
+                return Err(PreviewError::Options(format!(
+                    "--fov must be between 0 and 180 degrees, got {fov}"
+                )));
+            }
+            let camera =
+                Camera::looking_at(eye, look_at, fov.to_radians(), aspect).ok_or_else(|| {
+                    PreviewError::Options(
+                        "--eye and --look-at must be two different finite points".into(),
+                    )
+                })?;
+            return Ok((camera, CameraChoice::LookAt { eye, look_at }));
+        }
+        (Some(_), None) | (None, Some(_)) => {
+            return Err(PreviewError::Options(
+                "--eye and --look-at go together".into(),
+            ))
+        }
+        (None, None) if options.fov.is_some() => {
+            return Err(PreviewError::Options(
+                "--fov sets the field of view of --eye/--look-at".into(),
+            ))
+        }
+        (None, None) => {}
+    }
     if options.view.is_none() {
         if let Some(node) = scene.cameras.first() {
             if let Some(camera) = Camera::from_node(node, aspect) {

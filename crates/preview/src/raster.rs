@@ -5,7 +5,7 @@
 
 use crate::camera::Camera;
 use crate::math::Vec3;
-use crate::scene::Scene;
+use crate::scene::{Lightmap, Scene};
 use crate::texture::Texture;
 
 /// A rendered image: linear RGB per pixel, row by row from the top.
@@ -35,6 +35,7 @@ struct ClipVertex {
     view: Vec3,
     color: Vec3,
     uv: [f64; 2],
+    uv1: [f64; 2],
 }
 
 /// Renders `scene` through `camera` into a `width` × `height` frame over `background`
@@ -59,8 +60,13 @@ pub fn render(
             view: camera.to_view(v.position),
             color: v.color,
             uv: v.uv,
+            uv1: v.uv1,
         });
-        let texture = triangle.texture.and_then(|k| scene.textures.get(k));
+        let shade = Shade {
+            texture: triangle.texture.and_then(|k| scene.textures.get(k)),
+            lightmap: triangle.lightmap.and_then(|k| scene.lightmaps.get(k)),
+            emissive: triangle.emissive,
+        };
         let polygon = clip_near(&corners, camera.znear);
         if polygon.len() < 3 {
             stats.discarded += 1;
@@ -73,6 +79,7 @@ pub fn render(
                 inverse_depth: 1.0 / v.view[2],
                 color: v.color,
                 uv: v.uv,
+                uv1: v.uv1,
             })
             .collect();
         // The clipped polygon is convex and keeps the triangle's orientation: its signed area
@@ -89,7 +96,7 @@ pub fn render(
         }
         let mut covered = false;
         for k in 1..screen.len() - 1 {
-            covered |= draw(&mut frame, [screen[0], screen[k], screen[k + 1]], texture);
+            covered |= draw(&mut frame, [screen[0], screen[k], screen[k + 1]], &shade);
         }
         stats.rasterized += usize::from(covered);
     }
@@ -103,6 +110,16 @@ struct Projected {
     inverse_depth: f64,
     color: Vec3,
     uv: [f64; 2],
+    uv1: [f64; 2],
+}
+
+/// What a triangle's pixels show besides its interpolated colour.
+struct Shade<'a> {
+    /// The base-colour texture at `uv`.
+    texture: Option<&'a Texture>,
+    /// A lightmap at `uv1` (× its intensity), `emissive` added, the sum clamped to [0, 1].
+    lightmap: Option<&'a Lightmap>,
+    emissive: Vec3,
 }
 
 /// Sutherland–Hodgman against the plane z = `znear`: the part of the triangle at z ≥ `znear`
@@ -129,6 +146,7 @@ fn clip_near(corners: &[ClipVertex; 3], znear: f64) -> Vec<ClipVertex> {
                 view,
                 color: lerp(a.color, b.color),
                 uv: std::array::from_fn(|i| a.uv[i] + t * (b.uv[i] - a.uv[i])),
+                uv1: std::array::from_fn(|i| a.uv1[i] + t * (b.uv1[i] - a.uv1[i])),
             });
         }
     }
@@ -171,9 +189,10 @@ fn owns_edge(a: [f64; 2], b: [f64; 2]) -> bool {
     dy > 0.0 || (dy == 0.0 && dx < 0.0)
 }
 
-/// Rasterizes one triangle with depth test, its colour times `texture` at the interpolated
-/// UV; returns whether it covered any pixel centre.
-fn draw(frame: &mut Frame, mut t: [Projected; 3], texture: Option<&Texture>) -> bool {
+/// Rasterizes one triangle with depth test, its colour times the texture at the interpolated
+/// UV (and under a lightmap, times H at UV1 plus the emission, clamped); returns whether it
+/// covered any pixel centre.
+fn draw(frame: &mut Frame, mut t: [Projected; 3], shade: &Shade) -> bool {
     let mut area = edge(t[0].pixel, t[1].pixel, t[2].pixel);
     if area < 0.0 {
         t.swap(1, 2);
@@ -232,14 +251,25 @@ fn draw(frame: &mut Frame, mut t: [Projected; 3], texture: Option<&Texture>) -> 
                     .sum::<f64>()
                     * depth
             };
-            let texel = match texture {
+            let texel = match shade.texture {
                 Some(texture) => {
                     texture.sample([interpolate(&|v| v.uv[0]), interpolate(&|v| v.uv[1])])
                 }
                 None => [1.0; 3],
             };
-            frame.pixels[index] =
+            let color: Vec3 =
                 std::array::from_fn(|band| interpolate(&|v| v.color[band]) * texel[band]);
+            frame.pixels[index] = match shade.lightmap {
+                Some(lightmap) => {
+                    let uv1 = [interpolate(&|v| v.uv1[0]), interpolate(&|v| v.uv1[1])];
+                    let h = lightmap.texture.sample(uv1);
+                    std::array::from_fn(|band| {
+                        (color[band] * h[band] * lightmap.intensity + shade.emissive[band])
+                            .clamp(0.0, 1.0)
+                    })
+                }
+                None => color,
+            };
         }
     }
     covered

@@ -27,6 +27,8 @@ pub struct Vertex {
     pub color: Vec3,
     /// The base-colour texture's coordinates (0 when the triangle has no texture).
     pub uv: [f64; 2],
+    /// The lightmap's coordinates (0 when the triangle has no lightmap).
+    pub uv1: [f64; 2],
 }
 
 /// A triangle in world space. The front side is the counter-clockwise one (glTF's rule); the
@@ -38,6 +40,20 @@ pub struct Triangle {
     pub double_sided: bool,
     /// Index into [`Scene::textures`]: the base-colour texture that multiplies the colour.
     pub texture: Option<usize>,
+    /// A lightmap bake: index into [`Scene::lightmaps`], whose irradiance H (at `uv1`)
+    /// multiplies the colour (ρ × exposure), and the material's emission × exposure added to
+    /// it: clamp((ρ H + e) × exposure, 0, 1), the radiosity b = e + ρ H exposed as the vertex
+    /// bake's `COLOR_0` is.
+    pub lightmap: Option<usize>,
+    /// Linear RGB added under a lightmap (the material's emission × exposure).
+    pub emissive: Vec3,
+}
+
+/// A lightmap atlas as a lit viewer reads `MOZ_lightmap`: H = texel × `intensity`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Lightmap {
+    pub texture: Texture,
+    pub intensity: f64,
 }
 
 /// A perspective camera placed by a node of the scene. It looks down the node's −Z axis with
@@ -61,6 +77,8 @@ pub struct Scene {
     pub skipped_primitives: usize,
     /// Base-colour textures, one per material that has one.
     pub textures: Vec<Texture>,
+    /// Lightmap atlases (`MOZ_lightmap`), one per material that has one.
+    pub lightmaps: Vec<Lightmap>,
 }
 
 /// An axis-aligned box.
@@ -116,6 +134,11 @@ pub fn load(path: &Path, source: ColorSource) -> Result<Scene, PreviewError> {
     let mut textures = TextureCache {
         base: base.or(Some(Path::new("."))),
         of_material: HashMap::new(),
+        lightmap_of_material: HashMap::new(),
+        exposure: match source {
+            ColorSource::Color0 => bake_exposure(document).unwrap_or(1.0),
+            ColorSource::Radiosity { exposure } => exposure,
+        },
     };
     let mut stack: Vec<(gltf::Node, Mat4)> = scene
         .nodes()
@@ -159,6 +182,7 @@ pub fn load(path: &Path, source: ColorSource) -> Result<Scene, PreviewError> {
                 };
                 add_primitive(
                     &primitive,
+                    document,
                     &buffers,
                     &world,
                     source,
@@ -176,14 +200,63 @@ pub fn load(path: &Path, source: ColorSource) -> Result<Scene, PreviewError> {
     Ok(out)
 }
 
+/// The exposure a lightmap bake records for its vertex bake (`extras.bake_lightmap.exposure`).
+fn bake_exposure(document: &gltf::Document) -> Option<f64> {
+    let extras = document.as_json().extras.as_ref()?;
+    let value: serde_json::Value = serde_json::from_str(extras.get()).ok()?;
+    value
+        .get("bake_lightmap")?
+        .get("exposure")?
+        .as_f64()
+        .filter(|x| x.is_finite() && *x >= 0.0)
+}
+
 /// Each material's decoded base-colour texture (index into [`Scene::textures`]) and the
-/// TEXCOORD set it reads.
+/// TEXCOORD set it reads, and its lightmap (index into [`Scene::lightmaps`]) and set.
 struct TextureCache<'a> {
     base: Option<&'a Path>,
     of_material: HashMap<Option<usize>, Option<(usize, u32)>>,
+    lightmap_of_material: HashMap<Option<usize>, Option<(usize, u32)>>,
+    /// What a lightmap's b is multiplied by: `--exposure`, else the bake's recorded one.
+    exposure: f64,
 }
 
 impl TextureCache<'_> {
+    /// The material's `MOZ_lightmap` atlas, decoded, and the TEXCOORD set it reads.
+    fn lightmap(
+        &mut self,
+        material: &gltf::Material,
+        document: &gltf::Document,
+        buffers: &[gltf::buffer::Data],
+        out: &mut Scene,
+    ) -> Result<Option<(usize, u32)>, String> {
+        if let Some(known) = self.lightmap_of_material.get(&material.index()) {
+            return Ok(*known);
+        }
+        let made = match material.extension_value("MOZ_lightmap") {
+            None => None,
+            Some(value) => {
+                let index = value.get("index").and_then(|v| v.as_u64());
+                let texture = index
+                    .and_then(|k| document.textures().nth(k as usize))
+                    .ok_or("MOZ_lightmap names no texture of the file")?;
+                let set = value.get("texCoord").and_then(|v| v.as_u64()).unwrap_or(0);
+                let intensity = value
+                    .get("intensity")
+                    .and_then(|v| v.as_f64())
+                    .unwrap_or(1.0);
+                if !(intensity.is_finite() && intensity >= 0.0) {
+                    return Err(format!("MOZ_lightmap intensity {intensity} is not ≥ 0"));
+                }
+                let texture = texture::decode(&texture, "lightmap texture", buffers, self.base)?;
+                out.lightmaps.push(Lightmap { texture, intensity });
+                Some((out.lightmaps.len() - 1, set as u32))
+            }
+        };
+        self.lightmap_of_material.insert(material.index(), made);
+        Ok(made)
+    }
+
     fn get(
         &mut self,
         material: &gltf::Material,
@@ -205,6 +278,7 @@ impl TextureCache<'_> {
 /// Appends one primitive's triangles (in world space) to `out`.
 fn add_primitive(
     primitive: &gltf::Primitive,
+    document: &gltf::Document,
     buffers: &[gltf::buffer::Data],
     world: &Mat4,
     source: ColorSource,
@@ -262,12 +336,44 @@ fn add_primitive(
         ));
     }
     let texture = texture.map(|(k, _)| k);
+    let lightmap = textures.lightmap(&material, document, buffers, out)?;
+    let uv1: Option<Vec<[f32; 2]>> = match lightmap {
+        Some((_, set)) => Some(
+            reader
+                .read_tex_coords(set)
+                .ok_or_else(|| format!("its lightmap reads TEXCOORD_{set}, which is missing"))?
+                .into_f32()
+                .collect(),
+        ),
+        None => None,
+    };
+    if uv1.as_ref().is_some_and(|uv| uv.len() != n) {
+        return Err(format!(
+            "the lightmap's TEXCOORD has a different count from POSITION ({n})"
+        ));
+    }
+    // Under a lightmap the vertex colour is ρ's factor × the exposure; the pixel multiplies
+    // in the textures and adds the emission: clamp((ρ H + e) × exposure, 0, 1).
+    let exposure = textures.exposure;
+    let emissive = match lightmap {
+        Some(_) => {
+            let strength = material.emissive_strength().map_or(1.0, f64::from);
+            material
+                .emissive_factor()
+                .map(|e| f64::from(e) * strength * exposure)
+        }
+        None => [0.0; 3],
+    };
+    let lightmap = lightmap.map(|(k, _)| k);
 
     let mirrored = math::linear_determinant(world) < 0.0;
     let mut vertices = Vec::with_capacity(n);
     for (k, p) in positions.iter().enumerate() {
         let position = math::transform_point(world, p.map(f64::from));
         let color = match (source, &radiosity, &color0) {
+            _ if lightmap.is_some() => color0
+                .as_ref()
+                .map_or([exposure; 3], |c| c[k].map(|v| f64::from(v) * exposure)),
             (ColorSource::Color0, _, Some(c)) => c[k].map(f64::from),
             (ColorSource::Color0, _, None) => [1.0; 3],
             (ColorSource::Radiosity { exposure }, Some(r), _) => {
@@ -283,10 +389,12 @@ fn add_primitive(
             return Err(format!("vertex {k} has a non-finite position or colour"));
         }
         let uv = uvs.as_ref().map_or([0.0; 2], |uv| uv[k].map(f64::from));
+        let uv1 = uv1.as_ref().map_or([0.0; 2], |uv| uv[k].map(f64::from));
         vertices.push(Vertex {
             position,
             color,
             uv,
+            uv1,
         });
     }
 
@@ -319,6 +427,8 @@ fn add_primitive(
             vertices: order.map(|i| vertices[i]),
             double_sided,
             texture,
+            lightmap,
+            emissive,
         });
     }
     Ok(())

@@ -95,9 +95,42 @@ pub(crate) fn base_colour(
     let Some(info) = material.pbr_metallic_roughness().base_color_texture() else {
         return Ok(None);
     };
-    let texture = info.texture();
+    let (transform, set) = match info.texture_transform() {
+        Some(t) => {
+            let [ox, oy] = t.offset().map(f64::from);
+            let r = f64::from(t.rotation());
+            let [sx, sy] = t.scale().map(f64::from);
+            let (s, c) = r.sin_cos();
+            (
+                [[c * sx, s * sy, ox], [-s * sx, c * sy, oy]],
+                t.tex_coord().unwrap_or(info.tex_coord()),
+            )
+        }
+        None => (IDENTITY_TRANSFORM, info.tex_coord()),
+    };
+    let texture = decode(&info.texture(), "base-colour texture", buffers, base)?;
+    Ok(Some((
+        Texture {
+            transform,
+            ..texture
+        },
+        set,
+    )))
+}
+
+/// No `KHR_texture_transform`: uv' = uv.
+const IDENTITY_TRANSFORM: [[f64; 3]; 2] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+
+/// Texture `texture` decoded to linear RGB (sRGB-decoded 8-bit texels) with its sampler, no
+/// transform; `what` names it in errors.
+pub(crate) fn decode(
+    texture: &gltf::Texture,
+    what: &str,
+    buffers: &[gltf::buffer::Data],
+    base: Option<&std::path::Path>,
+) -> Result<Texture, String> {
     let data = gltf::image::Data::from_source(texture.source().source(), base, buffers)
-        .map_err(|e| format!("base-colour texture {}: {e}", texture.index()))?;
+        .map_err(|e| format!("{what} {}: {e}", texture.index()))?;
     let channels = match data.format {
         gltf::image::Format::R8G8B8 => 3,
         gltf::image::Format::R8G8B8A8 => 4,
@@ -105,7 +138,7 @@ pub(crate) fn base_colour(
         gltf::image::Format::R8G8 => 2,
         other => {
             return Err(format!(
-                "base-colour texture {}: {other:?} images are not drawn",
+                "{what} {}: {other:?} images are not drawn",
                 texture.index()
             ))
         }
@@ -131,30 +164,14 @@ pub(crate) fn base_colour(
         gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
         gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
     };
-    let (transform, set) = match info.texture_transform() {
-        Some(t) => {
-            let [ox, oy] = t.offset().map(f64::from);
-            let r = f64::from(t.rotation());
-            let [sx, sy] = t.scale().map(f64::from);
-            let (s, c) = r.sin_cos();
-            (
-                [[c * sx, s * sy, ox], [-s * sx, c * sy, oy]],
-                t.tex_coord().unwrap_or(info.tex_coord()),
-            )
-        }
-        None => ([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], info.tex_coord()),
-    };
-    Ok(Some((
-        Texture {
-            width: data.width,
-            height: data.height,
-            texels,
-            nearest: sampler.mag_filter() == Some(gltf::texture::MagFilter::Nearest),
-            wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
-            transform,
-        },
-        set,
-    )))
+    Ok(Texture {
+        width: data.width,
+        height: data.height,
+        texels,
+        nearest: sampler.mag_filter() == Some(gltf::texture::MagFilter::Nearest),
+        wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
+        transform: IDENTITY_TRANSFORM,
+    })
 }
 
 #[cfg(test)]
