@@ -9,7 +9,7 @@
 
 mod common;
 
-use bake_testkit::{blender_installed, skip_unless_set, tools_dir, validate_clean};
+use bake_testkit::{blender_installed, skip, tools_dir, validate_clean};
 use common::bake;
 use serde_json::Value;
 use std::path::Path;
@@ -49,7 +49,7 @@ fn textured_materials(path: &Path) -> Vec<String> {
 #[test]
 fn blender_textured_room_bakes_and_keeps_its_textures() {
     if !blender_installed() {
-        skip_unless_set(
+        skip(
             "BAKE_REQUIRE_BLENDER",
             "blender is not installed (tools/ci-clients --blender installs it)",
         );

@@ -9,13 +9,13 @@ mod common;
 use bake_exporter::ExportError;
 
 use bake_exporter::{write_gltf, Bake, Shading};
-use bake_testkit::{skip_unless_set, validator_available, validator_output};
+use bake_testkit::{skip, validator_available, validator_output};
 use common::sample_bake;
 
 #[test]
 fn outputs_validate_without_errors_or_warnings() {
     if !validator_available() {
-        skip_unless_set(
+        skip(
             "BAKE_REQUIRE_VALIDATOR",
             "the validator is not installed (run: bash tools/install-validator)",
         );
