@@ -29,6 +29,7 @@ use glam::DVec3;
 use mesher::ElementMesh;
 use polygon::Poly;
 use rayon::prelude::*;
+use scene::Convex;
 use std::sync::Mutex;
 use visibility::{Counters, OccludablePairs, Occluders, Visibility};
 
@@ -282,32 +283,32 @@ impl PairResult {
     };
 }
 
-/// A planar convex polygon of 3 or 4 corners, counter-clockwise about its unit normal, with
-/// its area and area centroid: an element, or a node of a hierarchy over elements. The unit of
-/// every pair function of this crate.
+/// A planar convex polygon ([`Convex`]: 3 or 4 corners, counter-clockwise about its unit
+/// normal) with its area and area centroid: an element, or a node of a hierarchy over
+/// elements. The unit of every pair function of this crate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Surface {
-    pub corners: [DVec3; 4],
-    /// 3 or 4 (a triangle repeats its third corner).
-    pub sides: u8,
-    pub normal: DVec3,
+    /// Its corners (3 or 4; a triangle repeats its third corner) and unit normal; the surface
+    /// derefs to it.
+    pub shape: Convex,
     pub centroid: DVec3,
     pub area: f64,
+}
+
+impl std::ops::Deref for Surface {
+    type Target = Convex;
+
+    fn deref(&self) -> &Convex {
+        &self.shape
+    }
 }
 
 impl Surface {
     /// A surface from 3 or 4 corners (counter-clockwise about the unit `normal`): area and area
     /// centroid by a fan of triangles. `None` for another corner count or no area.
     pub fn new(corners: &[DVec3], normal: DVec3) -> Option<Surface> {
-        let sides = corners.len();
-        if !(3..=4).contains(&sides) {
-            return None;
-        }
-        let mut c = [corners[0]; 4];
-        c[..sides].copy_from_slice(corners);
-        if sides == 3 {
-            c[3] = c[2];
-        }
+        let shape = Convex::new(corners, normal)?;
+        let (c, sides) = (shape.corners, usize::from(shape.sides));
         let mut area = 0.0;
         let mut moment = DVec3::ZERO;
         for k in 1..sides - 1 {
@@ -316,9 +317,7 @@ impl Surface {
             moment += (c[0] + c[k] + c[k + 1]) * (t / 3.0);
         }
         (area > 0.0 && area.is_finite()).then(|| Surface {
-            corners: c,
-            sides: sides as u8,
-            normal,
+            shape,
             centroid: moment / area,
             area,
         })
@@ -328,26 +327,15 @@ impl Surface {
     /// them).
     pub fn element(mesh: &ElementMesh, i: usize) -> Surface {
         let e = &mesh.elements[i];
-        let mut corners = [DVec3::ZERO; 4];
-        for (c, &k) in corners.iter_mut().zip(&e.corners) {
-            *c = mesh.vertices[k as usize];
-        }
         Surface {
-            corners,
-            sides: e.sides,
-            normal: e.normal,
+            shape: mesh.convex(i),
             centroid: e.centroid,
             area: e.area,
         }
     }
 
-    /// The corners actually used.
-    pub fn corner_points(&self) -> &[DVec3] {
-        &self.corners[..self.sides as usize]
-    }
-
     fn poly(&self) -> Poly {
-        Poly::from_points(self.corner_points().iter().copied())
+        Poly::from_points(self.corners().iter().copied())
     }
 }
 

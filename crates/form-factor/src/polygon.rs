@@ -1,4 +1,6 @@
-//! A small fixed-capacity convex polygon (no allocation per element pair) and its clipping.
+//! The clipping buffer: up to [`CAPACITY`] vertices in place (no allocation per element pair),
+//! what clipping a [`scene::Convex`] against a plane leaves. A working space, not a polygon
+//! value: surfaces are `scene::Convex` ([`crate::Surface`] derefs to one).
 
 use glam::DVec3;
 use mesher::{Element, ElementMesh, PatchGrid};

@@ -65,6 +65,18 @@ pub struct Element {
     pub normal: DVec3,
 }
 
+impl ElementMesh {
+    /// Element `i`'s corners and normal as a [`scene::Convex`].
+    pub fn convex(&self, i: usize) -> scene::Convex {
+        let e = &self.elements[i];
+        scene::Convex {
+            corners: e.corners.map(|k| self.vertices[k as usize]),
+            sides: e.sides,
+            normal: e.normal,
+        }
+    }
+}
+
 impl Element {
     /// Corner indices actually used (3 or 4).
     pub fn corner_indices(&self) -> &[u32] {

@@ -33,6 +33,46 @@ pub enum Side {
     Back,
 }
 
+/// A planar convex polygon of 3 or 4 corners, counter-clockwise about its unit normal, stored
+/// inline (a triangle repeats its third corner as the fourth): the one convex-polygon value
+/// every numerics crate passes around, `Copy`, so nothing is allocated per element pair. A
+/// scene [`Polygon`] gives one ([`Polygon::convex`]); an element of the mesh is one
+/// (`mesher::ElementMesh::convex`); visibility's `Patch` and form-factor's `Surface` are one
+/// with a tag (the polygon it lies on; area and centroid).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Convex {
+    pub corners: [DVec3; 4],
+    /// 3 or 4.
+    pub sides: u8,
+    pub normal: DVec3,
+}
+
+impl Convex {
+    /// From 3 or 4 corners (counter-clockwise about the unit `normal`); `None` for another
+    /// count.
+    pub fn new(corners: &[DVec3], normal: DVec3) -> Option<Convex> {
+        let sides = corners.len();
+        if !(3..=4).contains(&sides) {
+            return None;
+        }
+        let mut c = [corners[0]; 4];
+        c[..sides].copy_from_slice(corners);
+        if sides == 3 {
+            c[3] = c[2];
+        }
+        Some(Convex {
+            corners: c,
+            sides: sides as u8,
+            normal,
+        })
+    }
+
+    /// The corners actually used (3 or 4).
+    pub fn corners(&self) -> &[DVec3] {
+        &self.corners[..usize::from(self.sides)]
+    }
+}
+
 /// A planar convex polygon in world space.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Polygon {
@@ -43,6 +83,13 @@ pub struct Polygon {
     /// Index into [`Scene::materials`].
     pub material: usize,
     pub origin: Origin,
+}
+
+impl Polygon {
+    /// Its corners and normal as a [`Convex`] (`None` unless it has 3 or 4 corners).
+    pub fn convex(&self) -> Option<Convex> {
+        Convex::new(&self.vertices, self.normal)
+    }
 }
 
 /// An ideal diffuse (Lambertian) material, per RGB band.

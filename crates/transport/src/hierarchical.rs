@@ -1175,7 +1175,7 @@ impl<'a> Culling<'a> {
 fn patch(node: &Node) -> Patch {
     let s = &node.surface;
     // Sides are 3 or 4 by construction.
-    Patch::new(s.corner_points(), s.normal, node.polygon as usize)
+    Patch::new(s.corners(), s.normal, node.polygon as usize)
         .unwrap_or_else(|| unreachable!("hierarchy nodes are triangles or quads"))
 }
 

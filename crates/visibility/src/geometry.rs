@@ -3,15 +3,22 @@
 //! conservative "can anything come between these two patches" check.
 
 use glam::DVec3;
+use scene::Convex;
 
-/// A planar convex patch with 3 or 4 corners (an element or a scene polygon), counter-clockwise
-/// about its unit normal, tagged with the scene polygon it lies on.
+/// A planar convex patch (an element or a scene polygon: a [`Convex`], which it derefs to)
+/// tagged with the scene polygon it lies on.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Patch {
-    corners: [DVec3; 4],
-    sides: u8,
-    normal: DVec3,
+    shape: Convex,
     polygon: u32,
+}
+
+impl std::ops::Deref for Patch {
+    type Target = Convex;
+
+    fn deref(&self) -> &Convex {
+        &self.shape
+    }
 }
 
 impl Patch {
@@ -19,45 +26,22 @@ impl Patch {
     /// polygon `polygon` (the index given to [`crate::Occluders::new`]; it is never counted as an
     /// occluder of this patch). `None` for any other corner count.
     pub fn new(corners: &[DVec3], normal: DVec3, polygon: usize) -> Option<Patch> {
-        let sides = corners.len();
-        if !(3..=4).contains(&sides) {
-            return None;
-        }
-        let mut c = [corners[0]; 4];
-        c[..sides].copy_from_slice(corners);
-        if sides == 3 {
-            c[3] = c[2];
-        }
-        Some(Patch {
-            corners: c,
-            sides: sides as u8,
-            normal,
+        Convex::new(corners, normal).map(|shape| Patch {
+            shape,
             polygon: polygon as u32,
         })
     }
 
     /// Element `index` of `mesh` as a patch (its corners, normal and polygon).
     pub fn element(mesh: &mesher::ElementMesh, index: usize) -> Patch {
-        let e = &mesh.elements[index];
-        let mut corners = [DVec3::ZERO; 4];
-        for (c, &k) in corners.iter_mut().zip(&e.corners) {
-            *c = mesh.vertices[k as usize];
-        }
         Patch {
-            corners,
-            sides: e.sides,
-            normal: e.normal,
-            polygon: e.polygon,
+            shape: mesh.convex(index),
+            polygon: mesh.elements[index].polygon,
         }
-    }
-
-    /// The corners actually used (3 or 4).
-    pub fn corners(&self) -> &[DVec3] {
-        &self.corners[..self.sides as usize]
     }
 
     pub fn normal(&self) -> DVec3 {
-        self.normal
+        self.shape.normal
     }
 
     /// The scene polygon this patch lies on.
