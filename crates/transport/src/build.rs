@@ -157,6 +157,13 @@ impl solver::Operator for View<'_> {
             View::Hierarchical(h) => h.accuracy(),
         }
     }
+
+    fn rows_bounded(&self) -> bool {
+        match self {
+            View::Dense(f) => f.rows_bounded(),
+            View::Hierarchical(h) => h.rows_bounded(),
+        }
+    }
 }
 
 impl Transport for View<'_> {}

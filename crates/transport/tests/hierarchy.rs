@@ -381,3 +381,78 @@ fn saved_links_load_to_the_same_operator_and_damage_is_refused() {
     let finer = mesher::mesh(&polygons, Subdivision::MaxSize(0.2)).expect("mesh");
     assert!(load(&bytes, 0xfeed, &finer).contains("elements"));
 }
+
+/// Progress nobody listens to.
+struct Quiet;
+
+impl bake_transport::Progress for Quiet {
+    fn start(&self, _: &str, _: u64) {}
+    fn advance(&self, _: u64) {}
+    fn finish(&self) {}
+}
+
+/// `transport::build` gives the same operator as building it directly, and its view passes
+/// on what the operator says of itself: the hierarchy's rows are not bounded by 1 (each
+/// element gets its ancestors' averages), a dense matrix's are; only the dense one has
+/// entries for LU, only the hierarchy links to save.
+#[test]
+fn build_gives_each_kind_and_its_view_says_what_it_can_do() {
+    let polygons = box_walls();
+    let mesh = mesher::mesh(&polygons, Subdivision::Count(3)).expect("mesh");
+    let (direct, _) = build_on(&polygons, mesh.clone(), 0.01);
+    let occluders = Occluders::new(&polygons).expect("occluders");
+    let n = mesh.elements.len();
+    let e: Vec<[f64; 3]> = mesh
+        .elements
+        .iter()
+        .map(|el| if el.polygon == 0 { [1.0; 3] } else { [0.0; 3] })
+        .collect();
+    let rho = vec![[0.5; 3]; n];
+    let problem = bake_transport::Problem {
+        polygons: &polygons,
+        mesh: &mesh,
+        occluders: &occluders,
+        rho: &rho,
+        source: &e,
+    };
+    let hierarchical = bake_transport::Options::Hierarchical(HierarchicalOptions {
+        link_tolerance: 0.01,
+        estimator: Estimator::Contour,
+        contour: ContourOptions::default(),
+        ..HierarchicalOptions::default()
+    });
+    let mut stages = Vec::new();
+    let built = bake_transport::build(&problem, &hierarchical, &Quiet, &mut |s| stages.push(s))
+        .expect("links");
+    assert_eq!(stages, ["links"]);
+    let view = built.operator.view().expect("a view");
+    assert!(!view.rows_bounded() && !direct.rows_bounded());
+    assert!(view.dense().is_none());
+    let ones = vec![1.0; n];
+    let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+    view.apply(&ones, &mut a);
+    direct.apply(&ones, &mut b);
+    assert_eq!(a, b, "the same links either way");
+    assert!(built.operator.into_links().is_some());
+
+    let dense = bake_transport::Options::Dense(bake_transport::DenseOptions {
+        estimator: Estimator::Contour,
+        contour: ContourOptions::default(),
+        samples: 16,
+        row_sum_margin: 0.05,
+    });
+    let mut stages = Vec::new();
+    let built =
+        bake_transport::build(&problem, &dense, &Quiet, &mut |s| stages.push(s)).expect("dense");
+    assert_eq!(stages, ["occludable_pairs", "form_factors"]);
+    let view = built.operator.view().expect("a view");
+    assert!(view.rows_bounded());
+    let f = view.dense().expect("entries");
+    assert_eq!(f.n(), n);
+    // A closed box: every row of the exact matrix sums to 1 (eq. 15).
+    for i in 0..n {
+        let sum: f64 = f.row(i).iter().sum();
+        assert!((sum - 1.0).abs() < 1e-6, "row {i}: {sum}");
+    }
+    assert!(built.operator.into_links().is_none());
+}
