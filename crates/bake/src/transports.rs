@@ -13,7 +13,7 @@ use form_factor::RowSumLimit;
 use mesher::ElementMesh;
 use scene::Scene;
 use solver::{EnergyBalance, Solution, BANDS};
-use transport::{Built, LinkError, Stats};
+use transport::{Built, LinkError, Stats, View};
 use visibility::Occluders;
 
 /// What every transport is given.
@@ -128,27 +128,7 @@ pub(crate) fn hierarchical(
             build(p, &options, progress, stages)?
         }
     };
-    let solution = solve(p, &built, progress)?;
-    stages.record("solve");
-    let (irradiance, energy) = p.finish(
-        &built.operator.view().map_err(BakeError::Internal)?,
-        &solution,
-    )?;
-    let saved_links = match built.operator.into_links() {
-        Some(transport) if settings.save_links => Some(SavedLinks { key, transport }),
-        _ => None,
-    };
-    Ok(Transported {
-        solution,
-        irradiance,
-        energy,
-        counts: counts(&built.stats),
-        effects: built.effects,
-        sampled_polygons: built.sampled_polygons,
-        samples: built.samples,
-        row_sums: None,
-        saved_links,
-    })
+    solved(p, built, progress, stages, key)
 }
 
 /// Dense: every element pair, exact (or within the estimator's tolerance); rows past 1 are
@@ -167,29 +147,44 @@ pub(crate) fn dense(
     )?;
     let options = transport::Options::Dense(p.plan.dense_options());
     let built = build(p, &options, progress, stages)?;
-    let row_sums = match &built.stats {
-        Stats::Dense { row_sums, .. } => Some(row_sums.clone()),
-        Stats::Hierarchical(_) => None,
-    };
-    if let Some(limited) = &row_sums {
+    if let Some(limited) = built.row_sums() {
         warnings.extend(row_sum_warning(p.scene, p.mesh, &limited.beyond_margin));
     }
-    let solution = solve(p, &built, progress)?;
-    stages.record("solve");
-    let (irradiance, energy) = p.finish(
-        &built.operator.view().map_err(BakeError::Internal)?,
-        &solution,
-    )?;
+    solved(p, built, progress, stages, 0)
+}
+
+/// Solves on a built transport (its operator checked once, for the solve and for H and the
+/// energy balance) and keeps its links, under `key`, when `--save-links` asked for them.
+fn solved(
+    p: &Problem,
+    built: Built,
+    progress: &dyn Progress,
+    stages: &mut Stages,
+    key: u64,
+) -> Result<Transported, BakeError> {
+    let (solution, irradiance, energy) = {
+        let view = built.operator.view().map_err(BakeError::Internal)?;
+        let solution = solve(p, view, progress)?;
+        stages.record("solve");
+        let (irradiance, energy) = p.finish(&view, &solution)?;
+        (solution, irradiance, energy)
+    };
+    let row_sums = built.row_sums().cloned();
+    let counts = counts(&built.stats);
+    let saved_links = match built.operator.into_links() {
+        Some(transport) if p.settings.save_links => Some(SavedLinks { key, transport }),
+        _ => None,
+    };
     Ok(Transported {
         solution,
         irradiance,
         energy,
-        counts: counts(&built.stats),
+        counts,
         effects: built.effects,
         sampled_polygons: built.sampled_polygons,
         samples: built.samples,
         row_sums,
-        saved_links: None,
+        saved_links,
     })
 }
 
@@ -223,8 +218,7 @@ fn build(
 
 /// Solves the system on a built operator: LU where the operator has entries and the plan
 /// asks for it, else through products ([`solve_with`]).
-fn solve(p: &Problem, built: &Built, progress: &dyn Progress) -> Result<Solution, BakeError> {
-    let view = built.operator.view().map_err(BakeError::Internal)?;
+fn solve(p: &Problem, view: View, progress: &dyn Progress) -> Result<Solution, BakeError> {
     let solve = p.plan.solve();
     match (solve, view.dense()) {
         (Solve::Direct, Some(f)) => {

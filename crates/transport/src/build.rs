@@ -70,6 +70,17 @@ pub struct Built {
     pub stats: Stats,
 }
 
+impl Built {
+    /// The dense transport's row-sum limit (what geometry would have created); `None` for
+    /// links.
+    pub fn row_sums(&self) -> Option<&RowSumLimit> {
+        match &self.stats {
+            Stats::Dense { row_sums, .. } => Some(row_sums),
+            Stats::Hierarchical(_) => None,
+        }
+    }
+}
+
 /// The work a transport did, in its own terms.
 #[derive(Clone, Debug)]
 pub enum Stats {

@@ -111,6 +111,14 @@ fn refined(mesh: mesher::ElementMesh) -> mesher::ElementMesh {
     twice
 }
 
+/// Per element: emission 1 on the first polygon, 0 elsewhere.
+fn first_polygon_emits(mesh: &mesher::ElementMesh) -> Vec<[f64; 3]> {
+    mesh.elements
+        .iter()
+        .map(|el| if el.polygon == 0 { [1.0; 3] } else { [0.0; 3] })
+        .collect()
+}
+
 fn build_on(
     polygons: &[Polygon],
     mesh: mesher::ElementMesh,
@@ -118,13 +126,8 @@ fn build_on(
 ) -> (HierarchicalTransport, Vec<f64>) {
     let occluders = Occluders::new(polygons).expect("occluders");
     let n = mesh.elements.len();
-    let mut e = vec![[0.0; 3]; n];
     // The first polygon emits, everything reflects half.
-    for (k, el) in mesh.elements.iter().enumerate() {
-        if el.polygon == 0 {
-            e[k] = [1.0; 3];
-        }
-    }
+    let e = first_polygon_emits(&mesh);
     let rho = vec![[0.5; 3]; n];
     let options = HierarchicalOptions {
         link_tolerance: tolerance,
@@ -236,11 +239,7 @@ fn too_many_links_is_a_clear_refusal() {
     let mesh = mesher::mesh(&polygons, Subdivision::MaxSize(0.3)).expect("mesh");
     let occluders = Occluders::new(&polygons).expect("occluders");
     let n = mesh.elements.len();
-    let e: Vec<[f64; 3]> = mesh
-        .elements
-        .iter()
-        .map(|el| if el.polygon == 0 { [1.0; 3] } else { [0.0; 3] })
-        .collect();
+    let e = first_polygon_emits(&mesh);
     let options = HierarchicalOptions {
         link_tolerance: 1e-3,
         max_links: 10,
@@ -402,11 +401,7 @@ fn build_gives_each_kind_and_its_view_says_what_it_can_do() {
     let (direct, _) = build_on(&polygons, mesh.clone(), 0.01);
     let occluders = Occluders::new(&polygons).expect("occluders");
     let n = mesh.elements.len();
-    let e: Vec<[f64; 3]> = mesh
-        .elements
-        .iter()
-        .map(|el| if el.polygon == 0 { [1.0; 3] } else { [0.0; 3] })
-        .collect();
+    let e = first_polygon_emits(&mesh);
     let rho = vec![[0.5; 3]; n];
     let problem = bake_transport::Problem {
         polygons: &polygons,
