@@ -150,6 +150,12 @@ pub struct Counts {
     pub polygon_pairs: u64,
     #[serde(default)]
     pub cluster_pairs_dropped: u64,
+    /// Hierarchical transport: nodes whose occludable links' light is spread over their
+    /// elements by a shadow mask, and the shadow rays cast for the masks (in `rays_cast`).
+    #[serde(default)]
+    pub masked_nodes: u64,
+    #[serde(default)]
+    pub mask_rays: u64,
 }
 
 impl Counts {

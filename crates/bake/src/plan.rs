@@ -130,6 +130,7 @@ impl Plan {
             contour: self.settings.contour,
             passes: LINK_PASSES,
             max_links,
+            shadow_masks: true,
         }
     }
 

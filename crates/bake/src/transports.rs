@@ -259,6 +259,8 @@ fn counts(stats: &Stats) -> Counts {
             blocked_links: s.blocked_links,
             polygon_pairs: s.polygon_pairs,
             cluster_pairs_dropped: s.clusters_dropped,
+            masked_nodes: s.masked_nodes,
+            mask_rays: s.mask_rays,
             ..Counts::default()
         },
     }

@@ -87,6 +87,8 @@ fn report_holds_the_scene_and_results() {
             blocked_links: 0,
             polygon_pairs: 0,
             cluster_pairs_dropped: 0,
+            masked_nodes: 0,
+            mask_rays: 0,
         }
     );
     assert_eq!(report.warnings, fixture.scene.warnings);

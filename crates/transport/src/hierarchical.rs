@@ -52,6 +52,16 @@
 //! directions, so reciprocity and energy are exact as with constant links (README: measured
 //! errors against the dense transport and the continuous solution).
 //!
+//! **Shadow masks.** A link between coarse nodes carries the right total, but pushed down by
+//! area it lights every element of its receiver alike, those a desk hides included (and their
+//! reflection then reaches the desk's back face and leaves the scene). So, once linking is done,
+//! every interior node with links that a polygon can come between (or that straddle the
+//! other's plane) gets a mask (`masks`): each of its elements casts 16 shadow rays to points on
+//! the node's partners over those links, chosen by their share of its light, and that light is
+//! handed to the elements in proportion to `area × seen fraction` (the sum is unchanged), with
+//! the node's radiosity as a source weighted alike, so the operator stays exactly reciprocal
+//! and conserving. Measured against the dense transport (issue 31, docs/accuracy.md).
+//!
 //! **Passes.** B is not known before solving, so (as in HSA91) linking runs in passes: first
 //! with `B = max(e, B̄₀)` (B̄₀ the furnace estimate `Σ A e / Σ A (1 − ρ)`), then, after a coarse solve, again over the
 //! kept links with the solved B, until no link is refined (or [`HierarchicalOptions::passes`]
@@ -66,8 +76,9 @@
 //!
 //! Code: this module builds the transport in passes (`HierarchicalTransport::build`); `trees`
 //! makes the per-polygon trees, `culling` descends the cluster tree to the polygon pairs worth
-//! linking, `linking` refines node pairs into links, `operator` assembles the entries and
-//! applies `F` with push–pull, `links_file` saves and loads the links.
+//! linking, `linking` refines node pairs into links, `masks` makes the shadow masks,
+//! `operator` assembles the entries and applies `F` with push–pull, `links_file` saves and
+//! loads the links.
 
 use form_factor::{
     screened_pair, surface_screen, ContourOptions, Estimator, Method, PairKind, PairScreen, Surface,
@@ -86,12 +97,14 @@ use crate::clusters::{self, Clusters, Weights};
 mod culling;
 mod linking;
 mod links_file;
+mod masks;
 mod operator;
 mod trees;
 
 use culling::*;
 use linking::*;
 pub use links_file::LinksFileError;
+use masks::*;
 use operator::*;
 use trees::*;
 
@@ -111,6 +124,9 @@ pub struct HierarchicalOptions {
     /// Refuse to keep more links than this (a memory guard: each link costs about
     /// [`BYTES_PER_LINK`] bytes).
     pub max_links: u64,
+    /// Spread occludable links' light by shadow masks (module docs); off only to measure
+    /// what they change.
+    pub shadow_masks: bool,
 }
 
 /// Memory per kept link: the link itself while refining (72 bytes) and two operator entries
@@ -126,6 +142,7 @@ impl Default for HierarchicalOptions {
             contour: ContourOptions::default(),
             passes: 4,
             max_links: u64::MAX,
+            shadow_masks: true,
         }
     }
 }
@@ -163,7 +180,12 @@ pub struct HierarchicalStats {
     pub pairs_tested: u64,
     /// Of those, pairs some polygon may come between (shadow rays were cast).
     pub pairs_occludable: u64,
+    /// Shadow rays cast, the masks' included.
     pub rays_cast: u64,
+    /// Nodes whose occludable links' light is spread by a shadow mask, and the rays cast for
+    /// their masks ([`masks`]).
+    pub masked_nodes: u64,
+    pub mask_rays: u64,
     pub kernel_evaluations: u64,
     /// Evaluated pairs by estimator: contour, point-to-polygon, point-to-point.
     pub by_method: [u64; 3],
@@ -198,6 +220,7 @@ pub struct HierarchicalTransport {
     nodes: Vec<Node>,
     children: Vec<u32>,
     entries: Entries,
+    masks: Masks,
     accuracy: f64,
     stats: HierarchicalStats,
 }
@@ -286,14 +309,17 @@ impl HierarchicalTransport {
         let total_area: f64 = mesh.elements.iter().map(|el| el.area).sum();
         let mut passes = 1;
         let accuracy = options.estimator.row_sum_accuracy();
+        let no_masks = Masks::none(nodes.len());
         while passes < options.passes {
             // A coarse solve with the current links, then re-examine them with its B.
-            let entries = assemble(&nodes, &links);
+            // Without masks: B only steers refinement.
+            let entries = assemble(&nodes, &links, false);
             let op = View {
                 n,
                 nodes: &nodes,
                 children: &children,
                 entries: &entries,
+                masks: &no_masks,
                 accuracy,
             };
             // B steers refinement only: a percent is plenty, and no condition estimate.
@@ -361,6 +387,12 @@ impl HierarchicalTransport {
             next.extend(revisited.links);
             links = next;
         }
+        let use_masks = options.shadow_masks;
+        let masks = if !use_masks {
+            Masks::none(nodes.len())
+        } else {
+            Masks::build(&nodes, &children, n, &links, occluders)
+        };
         let stats = HierarchicalStats {
             nodes: nodes.len() as u64,
             links: links.iter().filter(|l| l.g != 0.0).count() as u64,
@@ -370,17 +402,20 @@ impl HierarchicalTransport {
             pairs_evaluated: counters.pairs_evaluated.load(Ordering::Relaxed),
             pairs_tested: counters.pairs_tested.load(Ordering::Relaxed),
             pairs_occludable: counters.pairs_occludable.load(Ordering::Relaxed),
-            rays_cast: counters.rays_cast.load(Ordering::Relaxed),
+            rays_cast: counters.rays_cast.load(Ordering::Relaxed) + masks.rays,
+            masked_nodes: masks.node.len() as u64,
+            mask_rays: masks.rays,
             kernel_evaluations: counters.kernel_evaluations.load(Ordering::Relaxed),
             by_method: [0, 1, 2].map(|k| counters.by_method[k].load(Ordering::Relaxed)),
             passes,
         };
-        let entries = assemble(&nodes, &links);
+        let entries = assemble(&nodes, &links, use_masks);
         Ok(HierarchicalTransport {
             n,
             nodes,
             children,
             entries,
+            masks,
             accuracy,
             stats,
         })
@@ -392,6 +427,7 @@ impl HierarchicalTransport {
             nodes: &self.nodes,
             children: &self.children,
             entries: &self.entries,
+            masks: &self.masks,
             accuracy: self.accuracy,
         }
     }

@@ -124,6 +124,15 @@ fn build_on(
     mesh: mesher::ElementMesh,
     tolerance: f64,
 ) -> (HierarchicalTransport, Vec<f64>) {
+    build_with(polygons, mesh, tolerance, true)
+}
+
+fn build_with(
+    polygons: &[Polygon],
+    mesh: mesher::ElementMesh,
+    tolerance: f64,
+    shadow_masks: bool,
+) -> (HierarchicalTransport, Vec<f64>) {
     let occluders = Occluders::new(polygons).expect("occluders");
     let n = mesh.elements.len();
     // The first polygon emits, everything reflects half.
@@ -133,12 +142,27 @@ fn build_on(
         link_tolerance: tolerance,
         estimator: Estimator::Contour,
         contour: ContourOptions::default(),
+        shadow_masks,
         ..HierarchicalOptions::default()
     };
     let h = HierarchicalTransport::build(polygons, &mesh, &occluders, &rho, &e, &options, &|_| {})
         .expect("build");
     let areas = mesh.elements.iter().map(|el| el.area).collect();
     (h, areas)
+}
+
+/// Reciprocity, `A_i F_ij = A_j F_ji`: `Σ A_i (F x)_i y_i = Σ A_i (F y)_i x_i` for two
+/// arbitrary vectors, to rounding.
+fn check_reciprocity(h: &HierarchicalTransport, areas: &[f64]) {
+    let n = h.n();
+    let x: Vec<f64> = (0..n).map(|i| ((i * 7919) % 13) as f64).collect();
+    let y: Vec<f64> = (0..n).map(|i| ((i * 104729) % 17) as f64).collect();
+    let (mut fx, mut fy) = (vec![0.0; n], vec![0.0; n]);
+    h.apply(&x, &mut fx);
+    h.apply(&y, &mut fy);
+    let a: f64 = (0..n).map(|i| areas[i] * fx[i] * y[i]).sum();
+    let b: f64 = (0..n).map(|i| areas[i] * fy[i] * x[i]).sum();
+    assert!((a - b).abs() <= 1e-12 * a.abs(), "{a} vs {b}");
 }
 
 fn check_furnace_and_reciprocity(polygons: &[Polygon], subdivision: Subdivision) {
@@ -176,14 +200,7 @@ fn check_operator(polygons: &[Polygon], subdivision: Subdivision, refine: bool) 
             "{subdivision:?}: worst |row sum − 1| {worst} at {tolerance} ≥ {previous}"
         );
         previous = worst;
-        let x: Vec<f64> = (0..n).map(|i| ((i * 7919) % 13) as f64).collect();
-        let y: Vec<f64> = (0..n).map(|i| ((i * 104729) % 17) as f64).collect();
-        let (mut fx, mut fy) = (vec![0.0; n], vec![0.0; n]);
-        h.apply(&x, &mut fx);
-        h.apply(&y, &mut fy);
-        let a: f64 = (0..n).map(|i| areas[i] * fx[i] * y[i]).sum();
-        let b: f64 = (0..n).map(|i| areas[i] * fy[i] * x[i]).sum();
-        assert!((a - b).abs() <= 1e-12 * a.abs(), "{a} vs {b}");
+        check_reciprocity(&h, &areas);
         assert!(h.stats().links > 0);
     }
 }
@@ -330,16 +347,18 @@ fn sealed_rooms_exchange_no_light_and_their_cluster_pairs_are_dropped() {
     }
 }
 
-#[test]
-fn saved_links_load_to_the_same_operator_and_damage_is_refused() {
-    let polygons = box_walls();
-    let subdivision = Subdivision::MaxSize(0.3);
-    let (h, _) = build(&polygons, subdivision, 1e-2);
-    let mesh = mesher::mesh(&polygons, subdivision).expect("mesh");
+/// Saves `h` with `key` and loads it back: the same links, accuracy and bits of `F x`. Returns
+/// the saved bytes.
+fn check_save_and_load(
+    h: &HierarchicalTransport,
+    polygons: &[Polygon],
+    mesh: &mesher::ElementMesh,
+    key: u64,
+) -> Vec<u8> {
     let mut bytes = Vec::new();
-    h.save(0xfeed, &mut bytes).expect("save to memory");
+    h.save(key, &mut bytes).expect("save to memory");
     let loaded =
-        HierarchicalTransport::load(&polygons, &mesh, 0xfeed, &mut bytes.as_slice()).expect("load");
+        HierarchicalTransport::load(polygons, mesh, key, &mut bytes.as_slice()).expect("load");
     assert_eq!(loaded.stats().links, h.stats().links);
     let n = h.n();
     let x: Vec<f64> = (0..n).map(|i| ((i * 7919) % 13) as f64).collect();
@@ -348,6 +367,16 @@ fn saved_links_load_to_the_same_operator_and_damage_is_refused() {
     loaded.apply(&x, &mut b);
     assert!(a.iter().zip(&b).all(|(p, q)| p.to_bits() == q.to_bits()));
     assert_eq!(loaded.accuracy(), h.accuracy());
+    bytes
+}
+
+#[test]
+fn saved_links_load_to_the_same_operator_and_damage_is_refused() {
+    let polygons = box_walls();
+    let subdivision = Subdivision::MaxSize(0.3);
+    let (h, _) = build(&polygons, subdivision, 1e-2);
+    let mesh = mesher::mesh(&polygons, subdivision).expect("mesh");
+    let bytes = check_save_and_load(&h, &polygons, &mesh, 0xfeed);
 
     let load =
         |bytes: &[u8], key: u64, mesh: &mesher::ElementMesh| match HierarchicalTransport::load(
@@ -450,4 +479,106 @@ fn build_gives_each_kind_and_its_view_says_what_it_can_do() {
         assert!((sum - 1.0).abs() < 1e-6, "row {i}: {sum}");
     }
     assert!(built.operator.into_links().is_none());
+}
+
+/// A 4 × 3 × 4 room seen from inside, its ceiling first (the emitter of [`build`]), with a
+/// 1 × 1 × 1 block standing on the floor at (1.5…2.5, 1.5…2.5): top and sides facing out,
+/// open below (as the desks of the office floors), so the floor under it sees nothing.
+fn room_with_block() -> Vec<Polygon> {
+    let c = DVec3::new;
+    let mut faces: Vec<Polygon> = reference::box_walls(DVec3::ZERO, c(4.0, 3.0, 4.0))
+        .iter()
+        .map(|f| polygon(f.to_vec(), c(2.0, 1.5, 2.0)))
+        .collect();
+    // The ceiling (the face at y = 3) first.
+    let ceiling = faces
+        .iter()
+        .position(|p| p.vertices.iter().all(|v| v.y == 3.0))
+        .expect("a ceiling");
+    faces.swap(0, ceiling);
+    let (lo, hi) = (c(1.5, 0.0, 1.5), c(2.5, 1.0, 2.5));
+    let centre = (lo + hi) / 2.0;
+    for f in reference::box_walls(lo, hi - lo) {
+        let mid = f.iter().copied().sum::<DVec3>() / 4.0;
+        if mid.y == 0.0 {
+            continue;
+        }
+        // Facing out: towards a point beyond the face.
+        faces.push(polygon(f.to_vec(), mid + (mid - centre)));
+    }
+    faces
+}
+
+/// Whether a point of the floor of [`room_with_block`] is under the block.
+fn under_block(c: DVec3) -> bool {
+    c.y == 0.0 && (1.5..=2.5).contains(&c.x) && (1.5..=2.5).contains(&c.z)
+}
+
+#[test]
+fn shadow_masks_keep_hidden_elements_dark_and_the_operator_reciprocal() {
+    // Coarse links between the floor and the ceiling or walls are occludable (the block can
+    // come between): spread by area, their light would reach the floor under the block. The
+    // masks spread it by each element's own rays, and weight what the floor sends the same
+    // way, so the hidden elements receive exactly nothing and A_i F_ij = A_j F_ji still holds.
+    let polygons = room_with_block();
+    let subdivision = Subdivision::MaxSize(0.5);
+    let mesh = mesher::mesh(&polygons, subdivision).expect("mesh");
+    let (h, areas) = build(&polygons, subdivision, 1e-2);
+    let stats = h.stats();
+    assert!(stats.masked_nodes > 0 && stats.mask_rays > 0, "{stats:?}");
+    let n = h.n();
+    let e: Vec<f64> = first_polygon_emits(&mesh).iter().map(|v| v[0]).collect();
+    let mut first = vec![0.0; n];
+    h.apply(&e, &mut first);
+    let mut all = vec![0.0; n];
+    h.apply(&vec![1.0; n], &mut all);
+    let (mut hidden, mut lit_floor) = (0, 0);
+    for (k, el) in mesh.elements.iter().enumerate() {
+        let centre = el.centroid;
+        let under =
+            centre.y == 0.0 && (1.5..=2.5).contains(&centre.x) && (1.5..=2.5).contains(&centre.z);
+        if under {
+            hidden += 1;
+            assert_eq!(
+                first[k], 0.0,
+                "hidden element {k} receives from the ceiling"
+            );
+            assert_eq!(all[k], 0.0, "hidden element {k} receives");
+        } else if centre.y == 0.0 && first[k] > 0.0 {
+            lit_floor += 1;
+        }
+    }
+    assert_eq!(hidden, 4);
+    assert_eq!(lit_floor, 60);
+    // Without masks the same links light them (what the masks are for).
+    let (plain, _) = build_with(&polygons, mesh.clone(), 1e-2, false);
+    assert_eq!(plain.stats().masked_nodes, 0);
+    let mut leaked = vec![0.0; n];
+    plain.apply(&e, &mut leaked);
+    let under: Vec<usize> = (0..n)
+        .filter(|&k| under_block(mesh.elements[k].centroid))
+        .collect();
+    assert!(under.iter().all(|&k| leaked[k] > 0.0), "{under:?}");
+    check_reciprocity(&h, &areas);
+}
+
+#[test]
+fn saved_links_keep_their_shadow_masks() {
+    // The masks travel with the links (format 2): the loaded operator gives the same bits,
+    // and a damaged mask scale is refused.
+    let polygons = room_with_block();
+    let subdivision = Subdivision::MaxSize(0.5);
+    let (h, _) = build(&polygons, subdivision, 1e-2);
+    assert!(h.stats().masked_nodes > 0);
+    let mesh = mesher::mesh(&polygons, subdivision).expect("mesh");
+    let bytes = check_save_and_load(&h, &polygons, &mesh, 7);
+    // The last 8 bytes are the last mask scale.
+    let mut damaged = bytes.clone();
+    let end = damaged.len();
+    damaged[end - 8..].copy_from_slice(&(-1.0f64).to_le_bytes());
+    let message = match HierarchicalTransport::load(&polygons, &mesh, 7, &mut damaged.as_slice()) {
+        Ok(_) => String::from("loaded"),
+        Err(e) => e.to_string(),
+    };
+    assert!(message.contains("mask scale -1"), "{message}");
 }

@@ -87,6 +87,15 @@ impl Tree {
         })
     }
 
+    /// Calls `visit(piece)` for every piece whose box the segment p–q may cross (in no
+    /// particular order: callers that want the nearest compare distances themselves).
+    pub fn each_on_segment(&self, p: DVec3, q: DVec3, mut visit: impl FnMut(usize)) {
+        self.any_on_segment(p, q, |k| {
+            visit(k);
+            false
+        });
+    }
+
     /// The box lo–hi (world units) in the tree's frame, padded.
     fn query_box(&self, lo: DVec3, hi: DVec3) -> Aabb {
         Aabb::new(

@@ -170,6 +170,16 @@ pub struct Occluders {
     cutouts: Vec<Option<Cutout>>,
 }
 
+/// Where a segment first meets a polygon ([`Occluders::first_hit`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub polygon: usize,
+    /// Along the segment, 0 at its start and 1 at its end.
+    pub t: f64,
+    /// Whether the segment meets the polygon's front (the side its normal points to).
+    pub front: bool,
+}
+
 /// Whether a polygon with alpha cut-outs is there at a world point of its plane (false: the
 /// segment passes through). Built by the caller, which knows textures; visibility only asks.
 pub type Cutout = std::sync::Arc<dyn Fn(DVec3) -> bool + Send + Sync>;
@@ -404,6 +414,66 @@ impl Occluders {
                         there(p + (q - p) * t.clamp(0.0, 1.0))
                     })
         })
+    }
+
+    /// The nearest polygon (other than `skip`) that the segment p → q meets, where, and from
+    /// which side (the same edge-inclusive test and cut-outs as [`Occluders::segment_blocked`]).
+    /// It visits every candidate along the segment: meant for checks and tools (an independent
+    /// particle trace of where light goes), not for per-element-pair loops.
+    pub fn first_hit(&self, p: DVec3, q: DVec3, skip: usize) -> Option<Hit> {
+        let tree = self.tree.as_ref()?;
+        let edge_tol = 1e-9 * self.scale;
+        let mut best: Option<Hit> = None;
+        tree.each_on_segment(p, q, |k| {
+            if k == skip || !self.pieces[k].hits_segment(p, q, edge_tol) {
+                return;
+            }
+            let piece = &self.pieces[k];
+            let n = piece.patch.normal();
+            let (dp, dq) = (n.dot(p) - piece.offset, n.dot(q) - piece.offset);
+            let t = if dp == dq { 0.0 } else { dp / (dp - dq) }.clamp(0.0, 1.0);
+            let at = p + (q - p) * t;
+            if let Some(Some(there)) = self.cutouts.get(k) {
+                if !there(at) {
+                    return;
+                }
+            }
+            // Nearest first; at equal distance the lower index, so the answer does not
+            // depend on the visiting order.
+            if best.is_none_or(|b| t < b.t || (t == b.t && k < b.polygon)) {
+                best = Some(Hit {
+                    polygon: k,
+                    t,
+                    front: n.dot(q - p) < 0.0,
+                });
+            }
+        });
+        best
+    }
+
+    /// One shadow ray between the point at unit-square coordinates `(ua, va)` of `a` and the
+    /// one at `(ub, vb)` of `b` (mapped as in [`Occluders::visibility_with`]), lifted
+    /// [`Occluders::ray_offset`] along their normals and ignoring hits on their own polygons:
+    /// `None` when the two points do not face each other (no light passes between them),
+    /// else whether the segment is free.
+    pub fn point_pair_visible(
+        &self,
+        a: &Patch,
+        b: &Patch,
+        [ua, va, ub, vb]: [f64; 4],
+    ) -> Option<bool> {
+        let (x, _) = a.point(ua, va);
+        let (y, _) = b.point(ub, vb);
+        let d = y - x;
+        if !(a.normal().dot(d) > 0.0 && -b.normal().dot(d) > 0.0) {
+            return None;
+        }
+        let lift = self.ray_offset();
+        Some(!self.segment_blocked(
+            x + a.normal() * lift,
+            y + b.normal() * lift,
+            [a.polygon(), b.polygon()],
+        ))
     }
 
     /// The visible fraction between `a` and `b` with the default [`Estimator`]; see

@@ -466,3 +466,32 @@ fn shadow_candidates_miss_no_blocker() {
         "{tested} segments, {blocked} blocked"
     );
 }
+
+#[test]
+fn first_hit_finds_the_nearest_polygon_and_its_side() {
+    // Three stacked unit squares at z = 1 (facing up), 2 (facing down), 3 (facing up).
+    let squares = vec![
+        rect_z([0.0, 1.0], [0.0, 1.0], 1.0, true, 0),
+        rect_z([0.0, 1.0], [0.0, 1.0], 2.0, false, 1),
+        rect_z([0.0, 1.0], [0.0, 1.0], 3.0, true, 2),
+    ];
+    let occluders = Occluders::new(&squares).unwrap();
+    let (p, q) = (DVec3::new(0.5, 0.5, 0.0), DVec3::new(0.5, 0.5, 4.0));
+    // Upwards from below: square 0 from its back at t = 1/4.
+    let hit = occluders.first_hit(p, q, usize::MAX).unwrap();
+    assert_eq!((hit.polygon, hit.front), (0, false));
+    assert!((hit.t - 0.25).abs() < 1e-12, "{hit:?}");
+    // Skipping it: square 1, met from its front (it faces down, the ray goes up).
+    let hit = occluders.first_hit(p, q, 0).unwrap();
+    assert_eq!((hit.polygon, hit.front), (1, true));
+    assert!((hit.t - 0.5).abs() < 1e-12, "{hit:?}");
+    // Downwards from above: square 2 from its front.
+    let hit = occluders.first_hit(q, p, usize::MAX).unwrap();
+    assert_eq!((hit.polygon, hit.front), (2, true));
+    // Beside the squares: nothing.
+    let off = DVec3::new(2.0, 0.5, 0.0);
+    assert_eq!(
+        occluders.first_hit(off, off + DVec3::Z * 4.0, usize::MAX),
+        None
+    );
+}

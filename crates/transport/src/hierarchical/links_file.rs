@@ -5,23 +5,28 @@
 //! The trees are not stored: they are rebuilt from the mesh (deterministically) and their node
 //! count is checked. The caller's `key` (a hash of geometry and options) must match.
 //!
-//! Layout, little-endian: `b"BAKELNK1"`, key u64, elements u64, nodes u64, entries u64,
+//! Layout, little-endian: `b"BAKELNK2"`, key u64, elements u64, nodes u64, entries u64,
 //! accuracy f64, links u64, blocked links u64; `offsets` (nodes + 1) × u64, `sources`
-//! entries × u32, `coefficients` entries × f64, `gradients` entries × 6 × f32. Every value
-//! is checked on reading (monotone offsets, sources in range, finite non-negative
-//! coefficients, finite gradients): a damaged file is an error, never a panic or a NaN.
+//! entries × u32, `coefficients` entries × f64, `gradients` entries × 6 × f32, `masked`
+//! entries × u8 (0 or 1); then the shadow masks (`masks.rs`): their count M u64, nodes
+//! M × u32, offsets (M + 1) × u64, centroids M × 3 × f64, and per mask entry its element u32
+//! and scale f64. Every value is checked on reading (monotone offsets, nodes and elements in
+//! range, finite non-negative coefficients and scales, finite gradients and centroids, a mask
+//! for every masked entry's node): a damaged file is an error, never a panic or a NaN.
+//! Version 1 (before the masks) is refused as not of this version.
 
-use super::{build_trees, Entries, HierarchicalStats, HierarchicalTransport};
+use super::{build_trees, Entries, HierarchicalStats, HierarchicalTransport, Masks, NONE};
+use glam::DVec3;
 use mesher::ElementMesh;
 use scene::Polygon;
 use std::io::{self, Read, Write};
 
-const MAGIC: &[u8; 8] = b"BAKELNK1";
+const MAGIC: &[u8; 8] = b"BAKELNK2";
 
 /// Why a links file could not be used.
 #[derive(Debug, thiserror::Error)]
 pub enum LinksFileError {
-    #[error("not a links file of this version of bake (no BAKELNK1 header)")]
+    #[error("not a links file of this version of bake (no BAKELNK2 header)")]
     NotALinksFile,
     #[error(
         "the links were built for other geometry or link options (key {found:016x}, this bake \
@@ -63,6 +68,27 @@ impl HierarchicalTransport {
             for v in g.iter().flatten() {
                 w.write_all(&v.to_le_bytes())?;
             }
+        }
+        let flags: Vec<u8> = e.masked.iter().map(|&m| u8::from(m)).collect();
+        w.write_all(&flags)?;
+        let m = &self.masks;
+        w.write_all(&(m.node.len() as u64).to_le_bytes())?;
+        for v in &m.node {
+            w.write_all(&v.to_le_bytes())?;
+        }
+        for v in &m.offsets {
+            w.write_all(&v.to_le_bytes())?;
+        }
+        for c in &m.centroid {
+            for v in c.to_array() {
+                w.write_all(&v.to_le_bytes())?;
+            }
+        }
+        for v in &m.leaves {
+            w.write_all(&v.to_le_bytes())?;
+        }
+        for v in &m.scale {
+            w.write_all(&v.to_le_bytes())?;
         }
         Ok(())
     }
@@ -159,14 +185,40 @@ impl HierarchicalTransport {
             }
             gradients.push(g);
         }
+        let mut masked = Vec::with_capacity(reserve);
+        for _ in 0..entries {
+            r.read_exact(&mut buffer[..1])?;
+            match buffer[0] {
+                0 => masked.push(false),
+                1 => masked.push(true),
+                v => return Err(damaged(format!("mask flag {v}"))),
+            }
+        }
+        let masks = read_masks(r, n, nodes.len())?;
+        // Every masked entry's interior ends have masks (else their light would be dropped).
+        for (receiver, pair) in offsets.windows(2).enumerate() {
+            for k in pair[0] as usize..pair[1] as usize {
+                let source = sources[k] as usize;
+                if masked[k]
+                    && [receiver, source]
+                        .iter()
+                        .any(|&u| u >= n && masks.of_node[u] == NONE)
+                {
+                    return Err(damaged(format!(
+                        "masked entry {k} of a node without a mask"
+                    )));
+                }
+            }
+        }
         let mut rest = [0u8; 1];
         if r.read(&mut rest)? != 0 {
-            return Err(damaged("bytes after the last gradient".into()));
+            return Err(damaged("bytes after the last mask".into()));
         }
         let stats = HierarchicalStats {
             nodes: nodes.len() as u64,
             links,
             blocked_links,
+            masked_nodes: masks.node.len() as u64,
             ..HierarchicalStats::default()
         };
         Ok(HierarchicalTransport {
@@ -178,11 +230,68 @@ impl HierarchicalTransport {
                 sources,
                 coefficients,
                 gradients,
+                masked,
             },
+            masks,
             accuracy,
             stats,
         })
     }
+}
+
+/// The shadow masks of a links file over `n` elements and `total` nodes (module docs).
+fn read_masks(r: &mut dyn Read, n: usize, total: usize) -> Result<Masks, LinksFileError> {
+    let damaged = |what: String| LinksFileError::Damaged(what);
+    let count = read_u64(r)?;
+    if count > (total - n) as u64 {
+        return Err(damaged(format!("{count} masks over {} nodes", total - n)));
+    }
+    let count = count as usize;
+    let mut masks = Masks::none(total);
+    let mut buffer = [0u8; 4];
+    for _ in 0..count {
+        r.read_exact(&mut buffer)?;
+        let node = u32::from_le_bytes(buffer);
+        let previous = masks.node.last().copied();
+        if (node as usize) < n || node as usize >= total || previous.is_some_and(|p| p >= node) {
+            return Err(damaged(format!("mask node {node}")));
+        }
+        masks.of_node[node as usize] = masks.node.len() as u32;
+        masks.node.push(node);
+    }
+    masks.offsets.clear();
+    let mut previous = 0;
+    for k in 0..=count {
+        let v = read_u64(r)?;
+        if v < previous || (k == 0 && v != 0) || v > (n as u64).saturating_mul(64) {
+            return Err(damaged(format!("mask offset {v}")));
+        }
+        previous = v;
+        masks.offsets.push(v);
+    }
+    for _ in 0..count {
+        let c = [read_u64(r)?, read_u64(r)?, read_u64(r)?].map(f64::from_bits);
+        if !c.iter().all(|v| v.is_finite()) {
+            return Err(damaged(format!("mask centroid {c:?}")));
+        }
+        masks.centroid.push(DVec3::from_array(c));
+    }
+    for _ in 0..previous {
+        r.read_exact(&mut buffer)?;
+        let leaf = u32::from_le_bytes(buffer);
+        if leaf as usize >= n {
+            return Err(damaged(format!("mask element {leaf}")));
+        }
+        masks.leaves.push(leaf);
+    }
+    for _ in 0..previous {
+        let s = f64::from_bits(read_u64(r)?);
+        if !(s.is_finite() && s >= 0.0) {
+            return Err(damaged(format!("mask scale {s}")));
+        }
+        masks.scale.push(s);
+    }
+    Ok(masks)
 }
 
 fn read_u64(r: &mut dyn Read) -> io::Result<u64> {

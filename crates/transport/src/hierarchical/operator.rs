@@ -16,6 +16,9 @@ pub(super) struct Entries {
     /// linear). The same f32 values serve both directions of a link, so the operator stays
     /// exactly reciprocal.
     pub(super) gradients: Vec<[[f32; 3]; 2]>,
+    /// Per entry: whether its light goes through the masks of its interior ends
+    /// ([`masks::masked`]); all false when the operator has no masks (the coarse solves).
+    pub(super) masked: Vec<bool>,
 }
 
 /// The operator over borrowed trees and entries: the final transport and the coarse solves
@@ -25,6 +28,7 @@ pub(super) struct View<'a> {
     pub(super) nodes: &'a [Node],
     pub(super) children: &'a [u32],
     pub(super) entries: &'a Entries,
+    pub(super) masks: &'a Masks,
     pub(super) accuracy: f64,
 }
 
@@ -56,48 +60,97 @@ impl View<'_> {
             }
             moment[u] = m;
         }
-        // Gather over links, each receiver summed in its fixed entry order: the mean
-        // irradiance over the node and its gradient (a linear function over the node).
+        // Masked nodes as sources: means and first moments weighted by their masks' scales
+        // (about the weighted centroid), so that an element sends where it receives from.
+        let masks = self.masks;
+        let weighted: Vec<([f64; B], [DVec3; B])> = (0..masks.node.len())
+            .into_par_iter()
+            .map(|m| {
+                let area = self.nodes[masks.node[m] as usize].surface.area;
+                let centre = masks.centroid[m];
+                let (mut mean, mut moment) = ([0.0; B], [DVec3::ZERO; B]);
+                for k in masks.range(m) {
+                    let leaf = &self.nodes[masks.leaves[k] as usize].surface;
+                    let weight = leaf.area * masks.scale[k];
+                    let offset = leaf.centroid - centre;
+                    for band in 0..B {
+                        let power = weight * x[masks.leaves[k] as usize][band];
+                        mean[band] += power;
+                        moment[band] += offset * power;
+                    }
+                }
+                (mean.map(|v| v / area), moment)
+            })
+            .collect();
+        let source = |s: usize, masked: bool| -> (&[f64; B], &[DVec3; B]) {
+            match masks.of_node[s] {
+                m if masked && m != NONE => {
+                    let (mean, moment) = &weighted[m as usize];
+                    (mean, moment)
+                }
+                _ => (&xn[s], &moment[s]),
+            }
+        };
+        // What the entries `lo..hi` of receiver r deliver: the mean irradiance over the node
+        // and its gradient (a linear function over the node), summed in entry order; `take`
+        // picks the entries (masked ones or the others).
+        let deliver = |r: usize, take: &dyn Fn(bool) -> bool| -> Delivered<B> {
+            let (lo, hi) = (
+                self.entries.offsets[r] as usize,
+                self.entries.offsets[r + 1] as usize,
+            );
+            let mut d = Delivered::<B>::default();
+            // An element's irradiance gradient is never pushed further, and an element
+            // as a source has no first moment: the common element–element entries
+            // take the constant term alone.
+            let receiver_is_leaf = r < self.n;
+            let inverse_area = 1.0 / self.nodes[r].surface.area;
+            for k in lo..hi {
+                let masked = self.entries.masked[k];
+                if !take(masked) {
+                    continue;
+                }
+                let (s, f, grad) = (
+                    self.entries.sources[k] as usize,
+                    self.entries.coefficients[k],
+                    &self.entries.gradients[k],
+                );
+                let (xs, ms) = source(s, masked);
+                for (mean, x) in d.mean.iter_mut().zip(xs) {
+                    *mean += f * x;
+                }
+                if s >= self.n {
+                    let source = vec3(grad[1]) * inverse_area;
+                    for (mean, m) in d.mean.iter_mut().zip(ms) {
+                        *mean += source.dot(*m);
+                    }
+                }
+                if !receiver_is_leaf {
+                    let receiver = vec3(grad[0]);
+                    for (gradient, x) in d.gradient.iter_mut().zip(xs) {
+                        *gradient += receiver * *x;
+                    }
+                }
+            }
+            d
+        };
+        // Gather over links: an element takes every entry, a node those that are not masked
+        // (its masked ones are gathered per mask below).
         let mut g = vec![Delivered::<B>::default(); total];
         g.par_chunks_mut(1024).enumerate().for_each(|(chunk, out)| {
             for (k, gr) in out.iter_mut().enumerate() {
                 let r = chunk * 1024 + k;
-                let (lo, hi) = (
-                    self.entries.offsets[r] as usize,
-                    self.entries.offsets[r + 1] as usize,
-                );
-                let mut d = Delivered::<B>::default();
-                // An element's irradiance gradient is never pushed further, and an element
-                // as a source has no first moment: the common element–element entries
-                // take the constant term alone.
-                let receiver_is_leaf = r < self.n;
-                let inverse_area = 1.0 / self.nodes[r].surface.area;
-                for ((&s, &f), grad) in self.entries.sources[lo..hi]
-                    .iter()
-                    .zip(&self.entries.coefficients[lo..hi])
-                    .zip(&self.entries.gradients[lo..hi])
-                {
-                    let s = s as usize;
-                    let xs = &xn[s];
-                    for (mean, x) in d.mean.iter_mut().zip(xs) {
-                        *mean += f * x;
-                    }
-                    if s >= self.n {
-                        let source = vec3(grad[1]) * inverse_area;
-                        for (mean, m) in d.mean.iter_mut().zip(&moment[s]) {
-                            *mean += source.dot(*m);
-                        }
-                    }
-                    if !receiver_is_leaf {
-                        let receiver = vec3(grad[0]);
-                        for (gradient, x) in d.gradient.iter_mut().zip(xs) {
-                            *gradient += receiver * *x;
-                        }
-                    }
-                }
-                *gr = d;
+                *gr = if r < self.n {
+                    deliver(r, &|_| true)
+                } else {
+                    deliver(r, &|masked| !masked)
+                };
             }
         });
+        let shadowed: Vec<Delivered<B>> = (0..masks.node.len())
+            .into_par_iter()
+            .map(|m| deliver(masks.node[m] as usize, &|masked| masked))
+            .collect();
         // Push: parents before children (reverse creation order). A child receives the
         // parent's linear function averaged over itself, i.e. its value at the child's area
         // centroid; the children's area-weighted mean is the parent's mean exactly (their
@@ -111,6 +164,19 @@ impl View<'_> {
                 for band in 0..B {
                     gc.mean[band] += gu.mean[band] + gu.gradient[band].dot(offset);
                     gc.gradient[band] += gu.gradient[band];
+                }
+            }
+        }
+        // A mask's light straight to its elements, scaled: the linear function about the
+        // weighted centroid times s_i, whose a_i-weighted sum is the node's total (masks.rs).
+        for (m, d) in shadowed.iter().enumerate() {
+            let centre = masks.centroid[m];
+            for k in masks.range(m) {
+                let i = masks.leaves[k] as usize;
+                let offset = self.nodes[i].surface.centroid - centre;
+                let scale = masks.scale[k];
+                for band in 0..B {
+                    g[i].mean[band] += scale * (d.mean[band] + d.gradient[band].dot(offset));
                 }
             }
         }
@@ -170,7 +236,8 @@ impl Operator for View<'_> {
 }
 
 /// The operator's receiver-ordered entries from the links (both directions of each).
-pub(super) fn assemble(nodes: &[Node], links: &[Link]) -> Entries {
+/// With `masks`, the entries of [`masks::masked`] links are flagged for the masks.
+pub(super) fn assemble(nodes: &[Node], links: &[Link], masks: bool) -> Entries {
     let total = nodes.len();
     let mut counts = vec![0u64; total + 1];
     // Blocked links (every ray stopped) carry nothing: they stay in the link list, where a
@@ -189,6 +256,7 @@ pub(super) fn assemble(nodes: &[Node], links: &[Link]) -> Entries {
     let mut sources = vec![0u32; entries];
     let mut coefficients = vec![0.0f64; entries];
     let mut gradients = vec![[[0.0f32; 3]; 2]; entries];
+    let mut masked = vec![false; entries];
     for l in links() {
         // The gradient was fitted to the unoccluded kernel: scale it by the visible fraction.
         let visible = if l.g0 > 0.0 { (l.g / l.g0) as f32 } else { 0.0 };
@@ -201,6 +269,7 @@ pub(super) fn assemble(nodes: &[Node], links: &[Link]) -> Entries {
                 l.gradient[side].map(|v| v * visible),
                 l.gradient[1 - side].map(|v| v * visible),
             ];
+            masked[k] = masks && masks::masked(l);
             fill[r as usize] += 1;
         }
     }
@@ -209,5 +278,6 @@ pub(super) fn assemble(nodes: &[Node], links: &[Link]) -> Entries {
         sources,
         coefficients,
         gradients,
+        masked,
     }
 }
