@@ -317,3 +317,57 @@ fn a_busy_out_rolls_back_the_whole_set() {
     );
     assert_eq!(contents(dir.path()), before, "{stderr}");
 }
+
+/// `mtllib walls.mtl lamps.mtl` (several libraries on one line, valid OBJ) bakes the lamp's
+/// light; a missing library on the line is a warning and is said again in the summary line
+/// (before, the whole line was one missing name: every material grey, no light, exit 1 or a
+/// black bake, with only a warning that scrolled away).
+#[test]
+fn several_material_libraries_are_read_and_a_missing_one_is_in_the_summary() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    common::write_text(
+        &dir.path().join("lamps.mtl"),
+        "newmtl lamp\nKd 0 0 0\nKe 1 1 1\n",
+    );
+    common::write_text(
+        &dir.path().join("walls.mtl"),
+        "newmtl wall\nKd 0.5 0.5 0.5\n",
+    );
+    let scene = |libraries: &str| {
+        format!(
+            "mtllib {libraries}\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+             v 0 0 1\nv 0 1 1\nv 1 1 1\nv 1 0 1\n\
+             o floor\nusemtl wall\nf 1 2 3 4\no lamp\nusemtl lamp\nf 5 6 7 8\n"
+        )
+    };
+    let input = dir.path().join("room.obj");
+    let out = dir.path().join("out.gltf");
+    let report = dir.path().join("r.json");
+    let bake_with = |libraries: &str| {
+        common::write_text(&input, &scene(libraries));
+        let args = [input.as_os_str(), out.as_os_str(), "--report".as_ref()];
+        bake(args.into_iter().chain([report.as_os_str()])).success()
+    };
+    let run = bake_with("walls.mtl lamps.mtl");
+    assert!(run.warning_lines().is_empty(), "{run:#?}");
+    assert!(!run.stderr.contains("missing"), "{run:#?}");
+    let read = bake_job::report::read_report(&report).expect("report");
+    let emitted = read.energy.expect("energy balance").emitted;
+    assert!(
+        emitted[0] > 0.9,
+        "the lamp's Ke came through: emitted {emitted:?}"
+    );
+
+    let run = bake_with("gone.mtl lamps.mtl");
+    let warned: Vec<_> = run
+        .warning_lines()
+        .into_iter()
+        .filter(|w| w.contains("gone.mtl"))
+        .collect();
+    assert_eq!(warned.len(), 1, "{run:#?}");
+    let summary = run.stderr.lines().last().unwrap_or_default();
+    assert!(
+        summary.starts_with("bake: ") && summary.contains("1 material library missing"),
+        "{run:#?}"
+    );
+}
