@@ -26,7 +26,8 @@ use std::str::FromStr;
 ///
 /// Exit codes: 0 ok; 1 bad input (unreadable or malformed scene, invalid values, no finite
 /// solution, iterative solver not converged); 2 usage error; 3 internal or output error (OUT
-/// could not be written).
+/// could not be written); 4 too large for this machine (needs more memory than is available:
+/// it may bake on a larger machine or with coarser options).
 ///
 /// To look at a bake with no viewer installed: `bake preview OUT.gltf OUT.png` renders it
 /// (see `bake preview --help`).

@@ -371,3 +371,63 @@ fn several_material_libraries_are_read_and_a_missing_one_is_in_the_summary() {
         "{run:#?}"
     );
 }
+
+const TOO_LARGE: i32 = 4;
+
+/// A bake needing more memory than this machine has is exit 4 ("too large for this machine",
+/// so a build system can retry elsewhere), not 1 (bad input): refused in well under a second
+/// with one line naming the file and what is too large. `--subdiv 1024 --transport dense` on
+/// the cube is 6.3 M elements, a 300 TB matrix; a 2 KB glTF whose 100 primitives read one
+/// zero-filled accessor of 2^24 − 1 VEC3 asks the importer for 40 GB.
+#[test]
+fn memory_refusals_exit_4_before_any_work() {
+    if !std::fs::read_to_string("/proc/meminfo").is_ok_and(|m| m.contains("MemAvailable:")) {
+        bake_testkit::skip("BAKE_REQUIRE_MEMINFO", "no MemAvailable in /proc/meminfo");
+        return;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let cube = bake_testkit::fixture("cube.gltf");
+    let zero_filled = dir.path().join("zero.gltf");
+    let primitives: Vec<_> = (0..100)
+        .map(|_| json!({ "attributes": { "POSITION": 0 }, "mode": TRIANGLES }))
+        .collect();
+    common::write_json(
+        &zero_filled,
+        &json!({
+            "asset": { "version": "2.0" },
+            "accessors": [{
+                "componentType": FLOAT, "type": "VEC3", "count": (1u64 << 24) - 1,
+                "min": [0.0, 0.0, 0.0], "max": [0.0, 0.0, 0.0]
+            }],
+            "meshes": [{ "primitives": primitives }],
+            "nodes": [{ "mesh": 0 }],
+            "scenes": [{ "nodes": [0] }],
+            "scene": 0
+        }),
+    );
+    let out = dir.path().join("out.gltf");
+    for (input, args, says) in [
+        (
+            &cube,
+            &["--subdiv", "1024", "--transport", "dense"][..],
+            "6291456 elements need",
+        ),
+        (&zero_filled, &[][..], "100 zero-filled accessor reads"),
+    ] {
+        let mut command: Vec<&std::ffi::OsStr> = vec![input.as_os_str(), out.as_os_str()];
+        command.extend(args.iter().map(std::ffi::OsStr::new));
+        let started = std::time::Instant::now();
+        let run = bake(&command);
+        let seconds = started.elapsed().as_secs_f64();
+        let line = single_error_line(&run, TOO_LARGE);
+        assert!(
+            line.contains(&input.display().to_string())
+                && line.contains("too large for this machine")
+                && line.contains(says)
+                && line.contains("available"),
+            "{line}"
+        );
+        assert!(seconds < 1.0, "{args:?}: refused after {seconds:.2} s");
+    }
+    assert_eq!(file_names(dir.path()), vec!["zero.gltf".to_string()]);
+}

@@ -113,7 +113,7 @@ pub trait Events: Progress {
 }
 
 /// A failure with the exit code it maps to (1 bad input, 2 an output is an input or another
-/// output, 3 internal or output error).
+/// output, 3 internal or output error, [`EXIT_TOO_LARGE`] too large for this machine).
 #[derive(Debug)]
 pub struct Failure {
     pub code: u8,
@@ -140,8 +140,22 @@ impl Failure {
     }
 }
 
+/// The exit code of a bake refused only for the memory this machine has available (a
+/// memory estimate or total past `MemAvailable`): a build system may run it on a larger
+/// machine. Refusals by fixed limits (the mesher's element limit, the importer's face limit)
+/// are bad input (1): they fail the same everywhere.
+pub const EXIT_TOO_LARGE: u8 = 4;
+
 pub(crate) fn bad_input(error: anyhow::Error) -> Failure {
     Failure { code: 1, error }
+}
+
+/// Bad input (1), or too large for this machine ([`EXIT_TOO_LARGE`]) when `too_large`.
+fn input_or_too_large(too_large: bool, error: anyhow::Error) -> Failure {
+    Failure {
+        code: if too_large { EXIT_TOO_LARGE } else { 1 },
+        error,
+    }
 }
 
 pub(crate) fn internal(error: anyhow::Error) -> Failure {
@@ -165,9 +179,13 @@ pub fn run<E: Events>(job: &Job, events: &E) -> Result<Done, Failure> {
     let options = importer::Options {
         allow_outside_paths: job.allow_outside_paths,
     };
-    let scene = importer::load_with(&job.input, &options)
-        .with_context(|| format!("{}", job.input.display()))
-        .map_err(bad_input)?;
+    let scene = importer::load_with(&job.input, &options).map_err(|e| {
+        let too_large = e.is_too_large();
+        input_or_too_large(
+            too_large,
+            anyhow!(e).context(job.input.display().to_string()),
+        )
+    })?;
     let mut stages = report::Stages::default();
     stages.record("import", lap);
     plan.check_scene_inputs(&scene)?;
@@ -181,9 +199,13 @@ pub fn run<E: Events>(job: &Job, events: &E) -> Result<Done, Failure> {
     request.save_links = job.save_links.is_some();
     let settings = bake_core::Settings::resolve(&request, &scene.polygons)
         .map_err(|e| bad_input(anyhow!(e)))?;
-    let bake = bake_core::run(&scene, &settings, events).map_err(|e| Failure {
-        code: if e.is_input() { 1 } else { 3 },
-        error: anyhow!(e).context(format!("{}", job.input.display())),
+    let bake = bake_core::run(&scene, &settings, events).map_err(|e| {
+        let (input, too_large) = (e.is_input(), e.is_too_large());
+        let error = anyhow!(e).context(job.input.display().to_string());
+        match input {
+            true => input_or_too_large(too_large, error),
+            false => internal(error),
+        }
     })?;
     stages.extend(&bake);
     warnings.extend(&bake.warnings);
