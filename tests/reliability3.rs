@@ -431,3 +431,66 @@ fn memory_refusals_exit_4_before_any_work() {
     }
     assert_eq!(file_names(dir.path()), vec!["zero.gltf".to_string()]);
 }
+
+/// Every file in `dir` with its bytes, names sorted.
+fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    file_names(dir)
+        .into_iter()
+        .map(|name| {
+            let bytes = std::fs::read(dir.join(&name)).expect("read an output");
+            (name, bytes)
+        })
+        .collect()
+}
+
+/// SIGINT while the outputs are being written (the vertex bake's temporaries exist, the
+/// lightmap's 1552×1013 atlas is being encoded): the bake removes its temporaries and exits
+/// 130, and the previous complete set is there byte for byte (before, the temporaries stayed
+/// until the next bake into the folder and the exit was the signal's).
+#[cfg(unix)]
+#[test]
+fn sigint_while_writing_removes_the_temporaries_and_keeps_the_previous_set() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let cube = bake_testkit::fixture("cube.gltf");
+    let out = dir.path().join("out.gltf");
+    bake([cube.as_os_str(), out.as_os_str()]).success();
+    let previous = snapshot(dir.path());
+    assert_eq!(previous.len(), 6, "{:?}", file_names(dir.path()));
+
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_bake"))
+        .args([cube.as_os_str(), out.as_os_str()])
+        .args(["--refine", "off", "--lightmap-texel", "0.002"])
+        .args(["--lightmap-max", "8192"])
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("start the bake");
+    let temporaries = |dir: &Path| -> Vec<String> {
+        file_names(dir)
+            .into_iter()
+            .filter(|n| n.contains(".tmp-"))
+            .collect()
+    };
+    let started = std::time::Instant::now();
+    let mut seen = Vec::new();
+    while seen.is_empty() && started.elapsed().as_secs() < 120 {
+        if child.try_wait().expect("poll the bake").is_some() {
+            break;
+        }
+        seen = temporaries(dir.path());
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    assert!(!seen.is_empty(), "no temporary seen before the bake ended");
+    let kill = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("run kill");
+    assert!(kill.success());
+    let output = child.wait_with_output().expect("wait for the bake");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted by SIGINT"), "{stderr}");
+    assert_eq!(temporaries(dir.path()), Vec::<String>::new(), "{seen:?}");
+    assert!(snapshot(dir.path()) == previous, "the previous set changed");
+}

@@ -162,6 +162,42 @@ pub(crate) fn internal(error: anyhow::Error) -> Failure {
     Failure { code: 3, error }
 }
 
+/// Makes an interrupted bake (SIGINT, i.e. Ctrl-C, or SIGTERM) remove its temporaries
+/// before it exits with 128 + the signal (130, 143): the output sets' temporaries are
+/// removed (a commit in progress is let finish first, so the set is all previous or all
+/// new), targets and the previous set are never touched, and `say` gets one line to show.
+/// Without it a killed bake's temporaries stay until the next bake into the same folder
+/// removes them ([`exporter::remove_stale_temporaries`]).
+#[cfg(unix)]
+pub fn exit_cleanly_on_interrupt(say: impl Fn(&str) + Send + 'static) -> std::io::Result<()> {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM])?;
+    std::thread::Builder::new()
+        .name("interrupt".into())
+        .spawn(move || {
+            if let Some(signal) = signals.forever().next() {
+                let abandoned = exporter::abandon_temporaries();
+                let name = if signal == SIGINT {
+                    "SIGINT"
+                } else {
+                    "SIGTERM"
+                };
+                say(&format!(
+                    "interrupted by {name}: {} temporary file(s) removed",
+                    abandoned.removed
+                ));
+                std::process::exit(128 + signal);
+            }
+        })?;
+    Ok(())
+}
+
+/// Elsewhere the default handling stays (temporaries are removed by the next bake).
+#[cfg(not(unix))]
+pub fn exit_cleanly_on_interrupt(_say: impl Fn(&str) + Send + 'static) -> std::io::Result<()> {
+    Ok(())
+}
+
 /// What a finished bake says of itself: the one-line summary the binary prints.
 #[derive(Clone, Debug)]
 pub struct Done {
