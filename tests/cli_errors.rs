@@ -21,7 +21,9 @@ const TOO_LARGE: i32 = 4;
 
 /// Runs `bake [args] INPUT OUT/baked.gltf --report OUT/report.json` with an empty directory
 /// OUT and checks the failure: exit `code`, one error line that names `input`'s file name and
-/// contains every string of `problem`, and OUT still empty. Returns the error line.
+/// contains every string of `problem`, and OUT holding nothing but, where the bake got past
+/// planning its outputs, the failed bake's report with that line and code. Returns the error
+/// line.
 fn assert_rejected(input: &Path, args: &[&str], code: i32, problem: &[&str]) -> String {
     let out = tempfile::tempdir().expect("a temporary directory");
     let output = out.path().join("baked.gltf");
@@ -39,6 +41,12 @@ fn assert_rejected(input: &Path, args: &[&str], code: i32, problem: &[&str]) -> 
     assert!(line.contains(&*name), "{line:?} does not name {name:?}");
     for word in problem {
         assert!(line.contains(word), "{line:?} does not say {word:?}");
+    }
+    if report.exists() {
+        let failed = bake_job::report::read_failed_report(&report).expect("a failed report");
+        assert_eq!(format!("bake: error: {}", failed.failure.error), line);
+        assert_eq!(i32::from(failed.failure.exit_code), code);
+        std::fs::remove_file(&report).expect("remove the report");
     }
     assert_eq!(
         file_names(out.path()),

@@ -494,3 +494,73 @@ fn sigint_while_writing_removes_the_temporaries_and_keeps_the_previous_set() {
     assert_eq!(temporaries(dir.path()), Vec::<String>::new(), "{seen:?}");
     assert!(snapshot(dir.path()) == previous, "the previous set changed");
 }
+
+/// A bake that fails still writes its report when `--report` asks: the error line, the
+/// stage, the exit code and what was measured (before, a failed bake wrote no report and a
+/// build log could only show stderr). Bad input in the import: stage `import`, no counts;
+/// a refusal for memory in the bake: stage `bake…`, exit 4, the scene's counts. A file at the
+/// report's path that is not a bake report (here the broken scene's own buffer name) is
+/// kept, not replaced: a failed import does not know the scene's files.
+#[test]
+fn a_failed_bake_writes_its_report() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let broken = dir.path().join("broken.gltf");
+    common::write_text(
+        &broken,
+        "{ \"asset\": { \"version\": \"2.0\" }, \"meshes\": [ ",
+    );
+    let out = dir.path().join("out.gltf");
+    let report = dir.path().join("r.json");
+    let run = bake([
+        broken.as_os_str(),
+        out.as_os_str(),
+        "--report".as_ref(),
+        report.as_os_str(),
+    ]);
+    let line = single_error_line(&run, BAD_INPUT);
+    let failed = bake_job::report::read_failed_report(&report).expect("a failed bake's report");
+    assert_eq!(failed.failure.exit_code, 1);
+    assert_eq!(failed.failure.stage, "import");
+    assert_eq!(format!("bake: error: {}", failed.failure.error), line);
+    assert_eq!(failed.counts, None);
+    assert!(failed.timings.contains_key("total"), "{failed:?}");
+    assert!(!out.exists());
+    // It is not mistaken for a finished bake's report.
+    assert!(bake_job::report::read_report(&report).is_err());
+
+    if std::fs::read_to_string("/proc/meminfo").is_ok_and(|m| m.contains("MemAvailable:")) {
+        let cube = bake_testkit::fixture("cube.gltf");
+        let run = bake([
+            cube.as_os_str(),
+            out.as_os_str(),
+            "--report".as_ref(),
+            report.as_os_str(),
+            "--subdiv".as_ref(),
+            "1024".as_ref(),
+            "--transport".as_ref(),
+            "dense".as_ref(),
+        ]);
+        single_error_line(&run, TOO_LARGE);
+        let failed = bake_job::report::read_failed_report(&report).expect("replaced");
+        assert_eq!(failed.failure.exit_code, 4);
+        assert!(failed.failure.stage.starts_with("bake"), "{failed:?}");
+        assert!(
+            failed.failure.error.contains("6291456 elements"),
+            "{failed:?}"
+        );
+        assert_eq!(failed.counts.map(|c| c.polygons), Some(6), "{failed:?}");
+        assert!(failed.timings.contains_key("import"), "{failed:?}");
+    }
+
+    let kept = dir.path().join("notes.bin");
+    std::fs::write(&kept, b"not a report").expect("write");
+    let run = bake([
+        broken.as_os_str(),
+        out.as_os_str(),
+        "--report".as_ref(),
+        kept.as_os_str(),
+    ]);
+    single_error_line(&run, BAD_INPUT);
+    assert!(run.stderr.contains("not a bake report"), "{run:#?}");
+    assert_eq!(std::fs::read(&kept).expect("kept"), b"not a report");
+}
