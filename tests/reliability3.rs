@@ -564,3 +564,47 @@ fn a_failed_bake_writes_its_report() {
     assert!(run.stderr.contains("not a bake report"), "{run:#?}");
     assert_eq!(std::fs::read(&kept).expect("kept"), b"not a report");
 }
+
+/// Invalid glTF in, valid glTF out: the cube under a group node whose rotation is
+/// (1e30, 0, 0, 1e30), listed twice as a scene root, with one of its children listed as a
+/// root too. Both bakes (vertex and lightmap) pass the Khronos validator with no error or
+/// warning (before: ROTATION_NON_UNIT, and the scene's duplicate and non-root nodes, in OUT).
+#[test]
+fn invalid_node_structure_in_gives_validator_clean_outputs() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let text = std::fs::read_to_string(bake_testkit::fixture("cube-embedded.gltf")).expect("read");
+    let mut root: serde_json::Value = serde_json::from_str(&text).expect("JSON");
+    let scene = root["scene"].as_u64().unwrap_or(0) as usize;
+    let old_roots = root["scenes"][scene]["nodes"].clone();
+    let nodes = root["nodes"].as_array_mut().expect("nodes");
+    nodes.push(
+        json!({ "name": "group", "rotation": [1e30, 0.0, 0.0, 1e30], "children": old_roots }),
+    );
+    let group = nodes.len() - 1;
+    let child = old_roots[0].clone();
+    root["scenes"][scene]["nodes"] = json!([group, group, child]);
+    let input = dir.path().join("in.gltf");
+    common::write_json(&input, &root);
+    let out = dir.path().join("out.gltf");
+    bake([input.as_os_str(), out.as_os_str()]).success();
+    let baked: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&out).expect("read OUT")).expect("OUT is JSON");
+    let rotation: Vec<f64> = baked["nodes"][group]["rotation"]
+        .as_array()
+        .expect("a rotation")
+        .iter()
+        .filter_map(serde_json::Value::as_f64)
+        .collect();
+    let half = std::f64::consts::FRAC_1_SQRT_2;
+    let expected = [half, 0.0, 0.0, half];
+    assert!(
+        rotation.len() == 4
+            && expected
+                .iter()
+                .zip(&rotation)
+                .all(|(a, b)| (a - b).abs() < 1e-7),
+        "{rotation:?}"
+    );
+    assert_eq!(baked["scenes"][scene]["nodes"], json!([group]));
+    bake_testkit::validate_clean(&[out, dir.path().join("out.lightmap.gltf")]);
+}
