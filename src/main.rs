@@ -26,7 +26,9 @@ use std::str::FromStr;
 ///
 /// Exit codes: 0 ok; 1 bad input (unreadable or malformed scene, invalid values, no finite
 /// solution, iterative solver not converged); 2 usage error; 3 internal or output error (OUT
-/// could not be written).
+/// could not be written); 4 too large for this machine (needs more memory than is available:
+/// it may bake on a larger machine or with coarser options); 130 or 143 interrupted (SIGINT,
+/// SIGTERM: the bake's temporary files are removed, the previous outputs kept).
 ///
 /// To look at a bake with no viewer installed: `bake preview OUT.gltf OUT.png` renders it
 /// (see `bake preview --help`).
@@ -454,6 +456,10 @@ fn main() -> ExitCode {
             eprintln!("bake: error: cannot start {threads} worker threads: {e}");
             return ExitCode::from(3);
         }
+    }
+    if let Err(e) = bake_job::exit_cleanly_on_interrupt(|line| eprintln!("\nbake: error: {line}")) {
+        eprintln!("bake: error: cannot install the interrupt handler: {e}");
+        return ExitCode::from(3);
     }
     let bars = bars::Bars::new(cli.quiet);
     let done = bake_job::run(&cli.job(), &bars);

@@ -50,8 +50,13 @@ pub enum BakeError {
     Mesh(#[from] mesher::MeshError),
     #[error("cannot build the occlusion structure: {0}")]
     Visibility(#[from] visibility::VisibilityError),
-    #[error("{0}")]
+    /// More memory than this machine has available now (`MemAvailable`): the same bake may
+    /// run on a larger machine ([`BakeError::is_too_large`]).
+    #[error("too large for this machine: {0}")]
     TooLarge(String),
+    /// The transport's builder found the mesh inconsistent with its trees (a bug upstream).
+    #[error("internal error: {0}")]
+    Transport(transport::LinkError),
     #[error("no solution: {0}")]
     Solve(SolveError),
     /// The solver's refusal with what about this scene or these options caused it.
@@ -69,7 +74,13 @@ pub enum BakeError {
 impl BakeError {
     /// Whether the input (scene or options) is at fault rather than the baker.
     pub fn is_input(&self) -> bool {
-        !matches!(self, BakeError::Internal(_))
+        !matches!(self, BakeError::Internal(_) | BakeError::Transport(_))
+    }
+
+    /// Whether the bake was refused only for the memory this machine has (an estimate or a
+    /// link count past `MemAvailable`): it may run on a machine with more (exit code 4).
+    pub fn is_too_large(&self) -> bool {
+        matches!(self, BakeError::TooLarge(_))
     }
 }
 

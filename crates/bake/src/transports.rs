@@ -212,7 +212,9 @@ fn build(
             p.settings.estimator,
             p.rho_max,
         ),
-        e => BakeError::TooLarge(e.to_string()),
+        // The link limit comes from the memory available (`BYTES_PER_LINK` each).
+        e @ LinkError::TooManyLinks { .. } => BakeError::TooLarge(e.to_string()),
+        e => BakeError::Transport(e),
     })
 }
 

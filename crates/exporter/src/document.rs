@@ -82,23 +82,41 @@ pub(crate) struct DocumentWriter {
 }
 
 impl DocumentWriter {
-    /// Nodes (same order), their transforms and children, and the scenes.
+    /// Nodes (same order), their transforms and children, and the scenes, valid even where
+    /// the input was not: a node listed as the child of several nodes stays under the first
+    /// only, and each scene lists root nodes only, each once (a listed node that is a child
+    /// is replaced by its topmost ancestor, which brings it along).
     pub(crate) fn add_layout(&mut self, layout: &Layout) {
-        for node in &layout.nodes {
+        let parents = first_parents(layout);
+        for (i, node) in layout.nodes.iter().enumerate() {
+            let own: Vec<usize> = node
+                .children
+                .iter()
+                .copied()
+                .filter(|&c| parents[c] == Some(i))
+                .collect();
             let mut output = json::Node {
                 name: node.name.clone(),
-                children: children(&node.children),
+                children: children(&own),
                 ..Default::default()
             };
             set_transform(&mut output, &node.transform);
             self.root.nodes.push(output);
         }
         for scene in &layout.scenes {
+            let mut listed = vec![false; layout.nodes.len()];
+            let mut roots = Vec::new();
+            for &node in &scene.nodes {
+                let top = topmost(&parents, node);
+                if !std::mem::replace(&mut listed[top], true) {
+                    roots.push(index(top));
+                }
+            }
             self.root.scenes.push(json::Scene {
                 extensions: None,
                 extras: Default::default(),
                 name: scene.name.clone(),
-                nodes: scene.nodes.iter().map(|&n| index(n)).collect(),
+                nodes: roots,
             });
         }
         self.root.scene = layout.scene.map(index);
@@ -410,6 +428,54 @@ fn json_vec3(values: [f32; 3]) -> json::Value {
     json::Value::from(values.map(f64::from).to_vec())
 }
 
+/// Each node's parent: the first node (in index order) listing it as a child, once.
+fn first_parents(layout: &Layout) -> Vec<Option<usize>> {
+    let mut parents = vec![None; layout.nodes.len()];
+    for (i, node) in layout.nodes.iter().enumerate() {
+        for &child in &node.children {
+            if let Some(slot @ None) = parents.get_mut(child) {
+                if child != i {
+                    *slot = Some(i);
+                }
+            }
+        }
+    }
+    parents
+}
+
+/// The root above `node` (itself when it has no parent). At most as many steps as there
+/// are nodes: a cycle (which the importer refuses) ends there rather than looping.
+fn topmost(parents: &[Option<usize>], node: usize) -> usize {
+    let mut top = node;
+    for _ in 0..parents.len() {
+        match parents.get(top).copied().flatten() {
+            Some(parent) => top = parent,
+            None => break,
+        }
+    }
+    top
+}
+
+/// `rotation` scaled to unit length (in f64), as glTF requires of a node's rotation; the
+/// importer used it normalised (and refused one of length 0 or not finite: identity then).
+/// One within [`UNIT_TOLERANCE`] of unit length is written as the input gave it (the same
+/// bytes as before for every valid input).
+fn unit_quaternion(rotation: [f32; 4]) -> [f32; 4] {
+    let q = rotation.map(f64::from);
+    let length = q.iter().map(|c| c * c).sum::<f64>().sqrt();
+    if (length - 1.0).abs() <= UNIT_TOLERANCE {
+        return rotation;
+    }
+    if !(length.is_finite() && length > 0.0) {
+        return [0.0, 0.0, 0.0, 1.0];
+    }
+    q.map(|c| (c / length) as f32)
+}
+
+/// How far from 1 a quaternion's length may be and count as unit: the Khronos validator
+/// allows 5e-6 (`ROTATION_NON_UNIT`); f32 rounding of a unit quaternion is far below 1e-6.
+const UNIT_TOLERANCE: f64 = 1e-6;
+
 fn set_transform(output: &mut json::Node, transform: &Transform) {
     match transform {
         Transform::Matrix(matrix) => {
@@ -425,8 +491,9 @@ fn set_transform(output: &mut json::Node, transform: &Transform) {
             if *translation != [0.0; 3] {
                 output.translation = Some(*translation);
             }
-            if *rotation != [0.0, 0.0, 0.0, 1.0] {
-                output.rotation = Some(json::scene::UnitQuaternion(*rotation));
+            let rotation = unit_quaternion(*rotation);
+            if rotation != [0.0, 0.0, 0.0, 1.0] {
+                output.rotation = Some(json::scene::UnitQuaternion(rotation));
             }
             if *scale != [1.0; 3] {
                 output.scale = Some(*scale);
@@ -456,4 +523,81 @@ fn index<T>(i: usize) -> Index<T> {
 pub(crate) fn pad_to_four(bytes: &mut Vec<u8>) {
     let padding = (4 - bytes.len() % 4) % 4;
     bytes.resize(bytes.len() + padding, 0);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DMat4;
+    use scene::{Node, SceneRoots};
+
+    fn node(children: Vec<usize>, transform: Transform) -> Node {
+        Node {
+            name: None,
+            transform,
+            children,
+            mesh: None,
+            world: DMat4::IDENTITY,
+        }
+    }
+
+    fn trs(rotation: [f32; 4]) -> Transform {
+        Transform::Trs {
+            translation: [0.0; 3],
+            rotation,
+            scale: [1.0; 3],
+        }
+    }
+
+    /// Invalid glTF in, valid out: a 1e30 quaternion is written at unit length; a node that
+    /// is a scene root twice, or a root while the child of another, or the child of two
+    /// nodes, ends with one parent or one root entry; a matrix that is no TRS (a shear) is
+    /// kept as `matrix`, not decomposed.
+    #[test]
+    fn nodes_and_scenes_are_written_valid_from_invalid_input() {
+        let shear = [
+            1.0, 0.0, 0.0, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+        ];
+        let unit = [0.0, 0.0, 0.6, 0.8];
+        let layout = Layout {
+            nodes: vec![
+                node(vec![1, 2], trs([1e30, 0.0, 0.0, 1e30])),
+                node(vec![2], trs(unit)),
+                node(vec![], Transform::Matrix(shear)),
+                node(vec![], trs([0.0, 0.0, 0.0, 1.0])),
+            ],
+            meshes: Vec::new(),
+            scenes: vec![SceneRoots {
+                name: None,
+                nodes: vec![0, 0, 2, 3, 1, 3],
+            }],
+            scene: Some(0),
+        };
+        let mut writer = DocumentWriter::default();
+        writer.add_layout(&layout);
+        let root = writer.root;
+        let half = std::f32::consts::FRAC_1_SQRT_2;
+        assert_eq!(
+            root.nodes[0].rotation.map(|q| q.0),
+            Some([half, 0.0, 0.0, half])
+        );
+        // A valid rotation keeps its bytes.
+        assert_eq!(root.nodes[1].rotation.map(|q| q.0), Some(unit));
+        assert_eq!(root.nodes[2].matrix, Some(shear));
+        assert!(root.nodes[2].rotation.is_none());
+        let children: Vec<Vec<u32>> = root
+            .nodes
+            .iter()
+            .map(|n| {
+                n.children
+                    .iter()
+                    .flatten()
+                    .map(|c| c.value() as u32)
+                    .collect()
+            })
+            .collect();
+        assert_eq!(children, vec![vec![1, 2], vec![], vec![], vec![]]);
+        let roots: Vec<usize> = root.scenes[0].nodes.iter().map(|n| n.value()).collect();
+        assert_eq!(roots, vec![0, 3]);
+    }
 }

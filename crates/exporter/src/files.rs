@@ -6,6 +6,7 @@ use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, MutexGuard, PoisonError};
 
 /// The container an output path asks for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -82,6 +83,59 @@ pub trait FileOps: std::fmt::Debug + Send + Sync {
     fn remove_file(&self, path: &Path) -> std::io::Result<()> {
         fs::remove_file(path)
     }
+}
+
+/// The temporaries this process's output sets hold now (created, not yet renamed or
+/// removed), so that an interrupted bake can remove them ([`abandon_temporaries`]). A
+/// temporary is created, and a set committed, with the lock held: an interrupt waits for a
+/// commit to end (so it never leaves a set half renamed, and the previous set's backups are
+/// never taken for temporaries), and no temporary is created after it removed them.
+static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn live() -> MutexGuard<'static, Vec<PathBuf>> {
+    LIVE.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// Takes `path` off the live temporaries.
+fn forget(live: &mut Vec<PathBuf>, path: &Path) {
+    if let Some(i) = live.iter().position(|p| p == path) {
+        live.swap_remove(i);
+    }
+}
+
+/// Removes a temporary and takes it off the live ones.
+fn remove_temporary(files: &dyn FileOps, path: &Path) {
+    let mut live = live();
+    let _ = files.remove_file(path);
+    forget(&mut live, path);
+}
+
+/// For an interrupted process (SIGINT, SIGTERM): waits for a commit in progress to end, and
+/// removes every temporary this process's output sets hold (never a target, never the
+/// previous set's files). While the returned value lives no output set creates a temporary
+/// or commits: hold it until the process exits.
+pub fn abandon_temporaries() -> Abandoned {
+    let mut lock = live();
+    let removed = lock
+        .drain(..)
+        .filter(|t| fs::remove_file(t).is_ok())
+        .count();
+    Abandoned {
+        removed,
+        _lock: lock,
+    }
+}
+
+/// What [`abandon_temporaries`] removed, and the lock that keeps every output set still.
+pub struct Abandoned {
+    /// How many temporaries were removed.
+    pub removed: usize,
+    _lock: MutexGuard<'static, Vec<PathBuf>>,
+}
+
+/// The temporaries live now (for tests of [`abandon_temporaries`]' bookkeeping).
+pub fn live_temporaries() -> Vec<PathBuf> {
+    live().clone()
 }
 
 /// The file system itself.
@@ -185,7 +239,14 @@ impl OutputSet {
         for (_, target) in &self.staged {
             check_target(target)?;
         }
+        // Held through the renames and any rollback: an interrupt waits for the set to be
+        // all new or all previous.
+        let mut live = live();
         let staged = std::mem::take(&mut self.staged);
+        for (temporary, _) in &staged {
+            // Renamed or removed below, either way no longer a temporary to remove.
+            forget(&mut live, temporary);
+        }
         let mut replaced: Vec<Replaced> = Vec::with_capacity(staged.len());
         let mut rest = staged.into_iter();
         while let Some((temporary, target)) = rest.next() {
@@ -207,6 +268,7 @@ impl OutputSet {
                 let _ = self.files.remove_file(backup);
             }
         }
+        drop(live);
         Ok(replaced.into_iter().map(|r| r.target).collect())
     }
 
@@ -281,7 +343,7 @@ impl OutputSet {
 impl Drop for OutputSet {
     fn drop(&mut self) {
         for (temporary, _) in &self.staged {
-            let _ = self.files.remove_file(temporary);
+            remove_temporary(&*self.files, temporary);
         }
     }
 }
@@ -427,7 +489,15 @@ fn write_temporary_with(
     write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<PathBuf, ExportError> {
     let temporary = temporary_path_for(path);
-    let result = files.create(&temporary).and_then(|file| {
+    let created = {
+        let mut live = live();
+        let created = files.create(&temporary);
+        if created.is_ok() {
+            live.push(temporary.clone());
+        }
+        created
+    };
+    let result = created.and_then(|file| {
         let mut buffered = std::io::BufWriter::with_capacity(1 << 20, file);
         write(&mut buffered)?;
         let file = buffered.into_inner().map_err(|e| e.into_error())?;
@@ -436,7 +506,7 @@ fn write_temporary_with(
     match result {
         Ok(()) => Ok(temporary),
         Err(source) => {
-            let _ = files.remove_file(&temporary);
+            remove_temporary(files, &temporary);
             Err(ExportError::Io {
                 path: path.to_path_buf(),
                 source,
@@ -503,6 +573,37 @@ mod tests {
         set.stage(&b, b"2").expect("stage");
         drop(set);
         assert_eq!(fs::read_dir(dir.path()).expect("list").count(), 0);
+    }
+
+    /// The temporaries an interrupt would remove are exactly those staged and not yet
+    /// renamed or removed: live from staging until commit or drop, never a target.
+    #[test]
+    fn staged_temporaries_are_live_until_committed_or_dropped() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let in_dir = |paths: Vec<PathBuf>| -> Vec<PathBuf> {
+            paths
+                .into_iter()
+                .filter(|p| p.starts_with(dir.path()))
+                .collect()
+        };
+        let (a, b) = (dir.path().join("a.bin"), dir.path().join("b.gltf"));
+        let mut set = OutputSet::new();
+        set.stage(&a, b"1").expect("stage");
+        set.stage(&b, b"2").expect("stage");
+        let live = in_dir(live_temporaries());
+        assert_eq!(
+            live,
+            in_dir(set.staged.iter().map(|(t, _)| t.clone()).collect())
+        );
+        assert_eq!(live.len(), 2);
+        set.commit().expect("commit");
+        assert_eq!(in_dir(live_temporaries()), Vec::<PathBuf>::new());
+        let mut set = OutputSet::new();
+        set.stage(&a, b"3").expect("stage");
+        assert_eq!(in_dir(live_temporaries()).len(), 1);
+        drop(set);
+        assert_eq!(in_dir(live_temporaries()), Vec::<PathBuf>::new());
+        assert_eq!(fs::read(&a).expect("committed"), b"1");
     }
 
     #[test]

@@ -24,7 +24,10 @@ mod geometry;
 mod lightmap_gltf;
 mod same_file;
 
-pub use files::{check_target, remove_stale_temporaries, FileOps, OutputSet, RealFiles};
+pub use files::{
+    abandon_temporaries, check_target, live_temporaries, remove_stale_temporaries, Abandoned,
+    FileOps, OutputSet, RealFiles,
+};
 pub use same_file::{check_distinct, SameFile};
 
 pub use lightmap_gltf::{

@@ -67,9 +67,21 @@ pub enum ImportError {
     /// [`Options::allow_outside_paths`]).
     #[error("{0}")]
     Refused(String),
-    /// The scene exceeds a memory guard of the importer.
+    /// The scene exceeds a fixed limit of the importer (the same on every machine).
     #[error("too large: {0}")]
     TooLarge(String),
+    /// The scene needs more memory than this machine has available now (`MemAvailable`):
+    /// it may bake on a larger one ([`ImportError::is_too_large`]).
+    #[error("too large for this machine: {0}")]
+    ExceedsMemory(String),
+}
+
+impl ImportError {
+    /// Whether the file is refused only for the memory this machine has: the same file may
+    /// import on a machine with more (the CLI's exit code 4).
+    pub fn is_too_large(&self) -> bool {
+        matches!(self, ImportError::ExceedsMemory(_))
+    }
 }
 
 /// Reads `path` (`.gltf`, `.glb` or `.obj`, by extension, case-insensitive).

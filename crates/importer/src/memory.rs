@@ -21,7 +21,7 @@ pub(crate) fn available() -> Option<u64> {
 /// Refuses `needed` bytes for `what` when more than `available`.
 pub(crate) fn check(what: &str, needed: u64, available: Option<u64>) -> Result<(), ImportError> {
     match available {
-        Some(free) if needed > free => Err(ImportError::TooLarge(format!(
+        Some(free) if needed > free => Err(ImportError::ExceedsMemory(format!(
             "{what} need {} MiB, more than the {} MiB of memory available",
             needed.div_ceil(1 << 20),
             free >> 20
@@ -88,7 +88,8 @@ mod tests {
         assert!(check("x", 10, Some(10)).is_ok());
         assert!(check("x", 11, None).is_ok());
         let error = check("4 images", 3 << 30, Some(2 << 30)).expect_err("too much");
-        assert!(matches!(error, ImportError::TooLarge(_)));
+        assert!(matches!(error, ImportError::ExceedsMemory(_)));
+        assert!(error.is_too_large());
         assert!(
             error.to_string().contains("4 images need 3072 MiB"),
             "{error}"

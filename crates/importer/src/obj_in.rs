@@ -14,7 +14,7 @@ use crate::{
     Primitive, Scene, SceneRoots, Side, Transform,
 };
 use glam::{DMat4, DVec3};
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::path::Path;
 
 /// Reflectance of the material used by OBJ faces without one (no `usemtl`, a missing MTL
@@ -65,6 +65,13 @@ fn load_with(bytes: &[u8], source: &str, read_mtl: &ReadMtl) -> Result<Scene, Im
     let checked = check_obj(&String::from_utf8_lossy(bytes))?;
     let mtl_error = RefCell::new(None);
     let mtl_warnings = RefCell::new(Vec::new());
+    let missing = Cell::new(0);
+    let libraries = Libraries {
+        read_mtl,
+        error: &mtl_error,
+        warnings: &mtl_warnings,
+        missing: &missing,
+    };
     // `..Default::default()` covers fields that other crates' `tobj` features may add.
     #[allow(clippy::needless_update)]
     let options = tobj::LoadOptions {
@@ -75,7 +82,7 @@ fn load_with(bytes: &[u8], source: &str, read_mtl: &ReadMtl) -> Result<Scene, Im
         ..Default::default()
     };
     let (models, mtl) = tobj::load_obj_buf(&mut checked.text.as_bytes(), &options, |name| {
-        load_mtl(read_mtl(name), &mtl_error, &mtl_warnings)
+        libraries.load_line(name)
     })
     .map_err(|e| ImportError::Obj(format!("{source}: {e}")))?;
     if let Some(error) = mtl_error.into_inner() {
@@ -85,6 +92,7 @@ fn load_with(bytes: &[u8], source: &str, read_mtl: &ReadMtl) -> Result<Scene, Im
     let stats = ImportStats {
         faces_read: checked.short_faces,
         degenerate_dropped: checked.short_faces,
+        material_libraries_missing: missing.get(),
         ..Default::default()
     };
     if checked.short_faces > 0 {
@@ -215,37 +223,78 @@ fn check_face_vertex(
     Ok(())
 }
 
-/// The material loader handed to `tobj`: takes what `read_mtl` returned for one library
-/// (its name for messages, its bytes), checks its colour lines, and records a missing
-/// library as a warning and a malformed one as an error.
-fn load_mtl(
-    (name, bytes): (String, std::io::Result<Vec<u8>>),
-    error: &RefCell<Option<ImportError>>,
-    warnings: &RefCell<Vec<String>>,
-) -> tobj::MTLLoadResult {
-    let bytes = match bytes {
-        Ok(bytes) => bytes,
-        Err(e) if e.get_ref().is_some_and(|inner| inner.is::<Refused>()) => {
-            error
+/// The material loader handed to `tobj`, with what it records: the first malformed or
+/// refused library (an error), missing libraries (warnings, and their count).
+struct Libraries<'a> {
+    read_mtl: &'a ReadMtl<'a>,
+    error: &'a RefCell<Option<ImportError>>,
+    warnings: &'a RefCell<Vec<String>>,
+    missing: &'a Cell<usize>,
+}
+
+impl Libraries<'_> {
+    /// One `mtllib` line. The OBJ format lets it name several libraries, separated by
+    /// whitespace (`mtllib a.mtl b.mtl`), but `tobj` passes the rest of the line as one name
+    /// (to allow names with spaces, which Blender writes unquoted). So the whole rest is read
+    /// as one name when it is a readable file, and otherwise each word is a library: the
+    /// materials of every library read are merged in order (a later library's material
+    /// replaces an earlier one of the same name, as a later `mtllib` line's does in `tobj`).
+    fn load_line(&self, line: &Path) -> tobj::MTLLoadResult {
+        let text = line.to_string_lossy();
+        let words: Vec<&str> = text.split_whitespace().collect();
+        let whole = (self.read_mtl)(line);
+        if words.len() < 2 || whole.1.is_ok() {
+            return self.load(whole);
+        }
+        let mut merged: tobj::MTLLoadResult = Err(tobj::LoadError::OpenFileFailed);
+        for word in words {
+            let Ok((materials, names)) = self.load((self.read_mtl)(Path::new(word))) else {
+                continue;
+            };
+            match &mut merged {
+                Ok((all, map)) => {
+                    let offset = all.len();
+                    all.extend(materials);
+                    for (name, i) in names {
+                        map.insert(name, i + offset);
+                    }
+                }
+                Err(_) => merged = Ok((materials, names)),
+            }
+        }
+        merged
+    }
+
+    /// Takes what `read_mtl` returned for one library (its name for messages, its bytes),
+    /// checks its colour lines, and records a missing library as a warning and a malformed
+    /// one as an error.
+    fn load(&self, (name, bytes): (String, std::io::Result<Vec<u8>>)) -> tobj::MTLLoadResult {
+        let bytes = match bytes {
+            Ok(bytes) => bytes,
+            Err(e) if e.get_ref().is_some_and(|inner| inner.is::<Refused>()) => {
+                self.error
+                    .borrow_mut()
+                    .get_or_insert(ImportError::Refused(format!("mtllib {e}")));
+                return Err(tobj::LoadError::OpenFileFailed);
+            }
+            Err(e) => {
+                self.missing.set(self.missing.get() + 1);
+                self.warnings.borrow_mut().push(format!(
+                    "material library {name} is missing ({e}): its materials fall back to the \
+                     default grey (ρ = {DEFAULT_RHO}, no emission)"
+                ));
+                return Err(tobj::LoadError::OpenFileFailed);
+            }
+        };
+        let fail = |message: String| {
+            self.error
                 .borrow_mut()
-                .get_or_insert(ImportError::Refused(format!("mtllib {e}")));
-            return Err(tobj::LoadError::OpenFileFailed);
-        }
-        Err(e) => {
-            warnings.borrow_mut().push(format!(
-                "cannot read material library {name} ({e}): its materials fall back to the default"
-            ));
-            return Err(tobj::LoadError::OpenFileFailed);
-        }
-    };
-    let fail = |message: String| {
-        error
-            .borrow_mut()
-            .get_or_insert(ImportError::Obj(format!("{name}: {message}")));
-        tobj::LoadError::MaterialParseError
-    };
-    let text = check_mtl(&String::from_utf8_lossy(&bytes)).map_err(fail)?;
-    tobj::load_mtl_buf(&mut text.as_bytes()).map_err(|e| fail(e.to_string()))
+                .get_or_insert(ImportError::Obj(format!("{name}: {message}")));
+            tobj::LoadError::MaterialParseError
+        };
+        let text = check_mtl(&String::from_utf8_lossy(&bytes)).map_err(fail)?;
+        tobj::load_mtl_buf(&mut text.as_bytes()).map_err(|e| fail(e.to_string()))
+    }
 }
 
 /// Checks the colour lines the importer uses, `Kd` and `Ke`: three numbers, or one

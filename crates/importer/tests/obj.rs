@@ -333,3 +333,89 @@ f 1 2 3
         scene.warnings
     );
 }
+
+/// `mtllib a.mtl b.mtl` names two libraries (the OBJ format separates them by whitespace):
+/// both are read and the faces get the materials of each (before, the line was read as one
+/// missing file "a.mtl b.mtl" and every face baked as the default grey, the lamp dark).
+#[test]
+fn mtllib_with_several_files_reads_every_library() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "walls.mtl", "newmtl wall\nKd 0.5 0.25 0.125\n");
+    write(
+        dir.path(),
+        "lamps.mtl",
+        "newmtl lamp\nKd 0.1 0.1 0.1\nKe 1 2 3\n",
+    );
+    write(
+        dir.path(),
+        "scene.obj",
+        "mtllib walls.mtl  lamps.mtl\n\
+         v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n\
+         o wall\nusemtl wall\nf 1 2 3\n\
+         o lamp\nusemtl lamp\nf 1 4 2\n",
+    );
+    let scene = load(&dir.path().join("scene.obj")).expect("loads");
+    let material = |name: &str| {
+        scene
+            .polygons
+            .iter()
+            .map(|p| &scene.materials[p.material])
+            .find(|m| m.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("no polygon with material {name}: {:?}", scene.materials))
+    };
+    assert_eq!(material("wall").rho, [0.5, 0.25, 0.125]);
+    assert_eq!(material("lamp").emission, [1.0, 2.0, 3.0]);
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    assert_eq!(scene.stats.material_libraries_missing, 0);
+    let read: Vec<_> = scene
+        .input_files
+        .iter()
+        .filter_map(|p| p.file_name())
+        .collect();
+    assert!(read.contains(&"walls.mtl".as_ref()), "{read:?}");
+    assert!(read.contains(&"lamps.mtl".as_ref()), "{read:?}");
+}
+
+/// A lamp triangle whose material comes from the library `lamp_file` (written when given)
+/// named on the line `mtllib {libraries}`; the scene as loaded.
+fn lamp_scene(libraries: &str, lamp_file: &str) -> Scene {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(
+        dir.path(),
+        lamp_file,
+        "newmtl lamp\nKd 0.1 0.1 0.1\nKe 1 2 3\n",
+    );
+    let obj = format!("mtllib {libraries}\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl lamp\nf 1 2 3\n");
+    write(dir.path(), "scene.obj", &obj);
+    load(&dir.path().join("scene.obj")).expect("loads")
+}
+
+/// One of two libraries on the line is missing: the other's materials are kept, and the
+/// missing one is a warning naming it and counted for the summary line.
+#[test]
+fn one_missing_library_of_several_warns_and_keeps_the_others() {
+    let scene = lamp_scene("gone.mtl lamps.mtl", "lamps.mtl");
+    assert_eq!(
+        scene.materials[scene.polygons[0].material].emission,
+        [1.0, 2.0, 3.0]
+    );
+    assert_eq!(scene.stats.material_libraries_missing, 1);
+    let named: Vec<_> = scene
+        .warnings
+        .iter()
+        .filter(|w| w.contains("gone.mtl") && w.contains("missing"))
+        .collect();
+    assert_eq!(named.len(), 1, "{:?}", scene.warnings);
+}
+
+/// A library whose name has a space (Blender writes such names unquoted) is still read as
+/// one file when it exists.
+#[test]
+fn mtllib_name_with_a_space_is_one_file_when_it_exists() {
+    let scene = lamp_scene("my lamps.mtl", "my lamps.mtl");
+    assert_eq!(
+        scene.materials[scene.polygons[0].material].emission,
+        [1.0, 2.0, 3.0]
+    );
+    assert_eq!(scene.stats.material_libraries_missing, 0);
+}

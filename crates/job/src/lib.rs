@@ -113,7 +113,7 @@ pub trait Events: Progress {
 }
 
 /// A failure with the exit code it maps to (1 bad input, 2 an output is an input or another
-/// output, 3 internal or output error).
+/// output, 3 internal or output error, [`EXIT_TOO_LARGE`] too large for this machine).
 #[derive(Debug)]
 pub struct Failure {
     pub code: u8,
@@ -140,12 +140,62 @@ impl Failure {
     }
 }
 
+/// The exit code of a bake refused only for the memory this machine has available (a
+/// memory estimate or total past `MemAvailable`): a build system may run it on a larger
+/// machine. Refusals by fixed limits (the mesher's element limit, the importer's face limit)
+/// are bad input (1): they fail the same everywhere.
+pub const EXIT_TOO_LARGE: u8 = 4;
+
 pub(crate) fn bad_input(error: anyhow::Error) -> Failure {
     Failure { code: 1, error }
 }
 
+/// Bad input (1), or too large for this machine ([`EXIT_TOO_LARGE`]) when `too_large`.
+fn input_or_too_large(too_large: bool, error: anyhow::Error) -> Failure {
+    Failure {
+        code: if too_large { EXIT_TOO_LARGE } else { 1 },
+        error,
+    }
+}
+
 pub(crate) fn internal(error: anyhow::Error) -> Failure {
     Failure { code: 3, error }
+}
+
+/// Makes an interrupted bake (SIGINT, i.e. Ctrl-C, or SIGTERM) remove its temporaries
+/// before it exits with 128 + the signal (130, 143): the output sets' temporaries are
+/// removed (a commit in progress is let finish first, so the set is all previous or all
+/// new), targets and the previous set are never touched, and `say` gets one line to show.
+/// Without it a killed bake's temporaries stay until the next bake into the same folder
+/// removes them ([`exporter::remove_stale_temporaries`]).
+#[cfg(unix)]
+pub fn exit_cleanly_on_interrupt(say: impl Fn(&str) + Send + 'static) -> std::io::Result<()> {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM])?;
+    std::thread::Builder::new()
+        .name("interrupt".into())
+        .spawn(move || {
+            if let Some(signal) = signals.forever().next() {
+                let abandoned = exporter::abandon_temporaries();
+                let name = if signal == SIGINT {
+                    "SIGINT"
+                } else {
+                    "SIGTERM"
+                };
+                say(&format!(
+                    "interrupted by {name}: {} temporary file(s) removed",
+                    abandoned.removed
+                ));
+                std::process::exit(128 + signal);
+            }
+        })?;
+    Ok(())
+}
+
+/// Elsewhere the default handling stays (temporaries are removed by the next bake).
+#[cfg(not(unix))]
+pub fn exit_cleanly_on_interrupt(_say: impl Fn(&str) + Send + 'static) -> std::io::Result<()> {
+    Ok(())
 }
 
 /// What a finished bake says of itself: the one-line summary the binary prints.
@@ -154,41 +204,142 @@ pub struct Done {
     pub summary: String,
 }
 
-/// Runs `job` to the end: every output written, or none (the previous set stays).
+/// Runs `job` to the end: every output written, or none (the previous set stays). A bake
+/// that fails in the import, the bake or the lightmap still writes its report when `--report`
+/// asks ([`report::FailedReport`]: the error, the stage, the exit code, what was measured).
+/// A failure while the outputs are written or renamed writes none: the previous set, its
+/// report included, stays byte for byte (and the output location is what failed).
 pub fn run<E: Events>(job: &Job, events: &E) -> Result<Done, Failure> {
     let started = Instant::now();
     check_options(job)?;
     let plan = Plan::new(job)?;
+    let tracked = Tracked {
+        events,
+        step: std::sync::Mutex::new(None),
+    };
+    let mut so_far = SoFar {
+        stage: "import",
+        counts: None,
+        stages: report::Stages::default(),
+        warnings: Vec::new(),
+    };
+    let done = bake_and_write(job, plan, &tracked, &mut so_far, started);
+    let before_outputs = matches!(so_far.stage, "import" | "bake" | "lightmap");
+    if let (Err(failure), Some(path), true) = (&done, &job.report, before_outputs) {
+        let stage = match (so_far.stage, tracked.step()) {
+            ("bake", Some(step)) => format!("bake: {step}"),
+            (stage, _) => stage.to_string(),
+        };
+        let entry = report::FailureEntry {
+            error: failure.line(),
+            stage,
+            exit_code: failure.code,
+        };
+        let mut failed = report::FailedReport::new(&job.input, entry);
+        failed.counts = so_far.counts;
+        (failed.timings, failed.peak_rss_mib) = so_far.stages.into_maps(started);
+        failed.warnings = so_far.warnings;
+        if let Err(e) = report::write_failed_report(path, &failed) {
+            events.warn(&format!("cannot write the failed bake's report: {e}"));
+        }
+    }
+    done
+}
 
+/// What a bake knew when it stopped: the stage it was in, the scene's counts once imported,
+/// the stages that finished, the warnings shown.
+struct SoFar {
+    stage: &'static str,
+    counts: Option<bake_core::Counts>,
+    stages: report::Stages,
+    warnings: Vec<String>,
+}
+
+/// The caller's [`Events`], remembering the last step the bake began (for a failed bake's
+/// report).
+struct Tracked<'a, E: Events> {
+    events: &'a E,
+    step: std::sync::Mutex<Option<String>>,
+}
+
+impl<E: Events> Tracked<'_, E> {
+    fn step(&self) -> Option<String> {
+        self.step
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .clone()
+    }
+}
+
+impl<E: Events> Progress for Tracked<'_, E> {
+    fn start(&self, stage: &str, total: u64) {
+        *self
+            .step
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(stage.to_string());
+        self.events.start(stage, total);
+    }
+    fn advance(&self, steps: u64) {
+        self.events.advance(steps);
+    }
+    fn finish(&self) {
+        self.events.finish();
+    }
+}
+
+impl<E: Events> Events for Tracked<'_, E> {
+    fn warn(&self, line: &str) {
+        self.events.warn(line);
+    }
+}
+
+/// [`run`] from the import on; `so_far` says how far it got.
+fn bake_and_write<E: Events>(
+    job: &Job,
+    plan: Plan,
+    events: &E,
+    so_far: &mut SoFar,
+    started: Instant,
+) -> Result<Done, Failure> {
     // 1. Import.
     let lap = Instant::now();
     let options = importer::Options {
         allow_outside_paths: job.allow_outside_paths,
     };
-    let scene = importer::load_with(&job.input, &options)
-        .with_context(|| format!("{}", job.input.display()))
-        .map_err(bad_input)?;
-    let mut stages = report::Stages::default();
-    stages.record("import", lap);
+    let scene = importer::load_with(&job.input, &options).map_err(|e| {
+        let too_large = e.is_too_large();
+        input_or_too_large(
+            too_large,
+            anyhow!(e).context(job.input.display().to_string()),
+        )
+    })?;
+    so_far.stages.record("import", lap);
+    so_far.counts = Some(bake_core::Counts::default().with_scene(&scene, &Default::default()));
     plan.check_scene_inputs(&scene)?;
     let authored_uv = authored_uv(job, &scene)?;
-    let mut warnings = Warnings::new(events);
+    let mut warnings = Warnings::new(events, &mut so_far.warnings);
     warnings.extend(&scene.warnings);
 
     // 2.–4. Mesh, visibility, transport, solve: one bake, as every caller runs it.
+    so_far.stage = "bake";
     let mut request = job.request.clone();
     request.irradiance = job.target != Target::Vertex || exporter::keeps_textures(&scene);
     request.save_links = job.save_links.is_some();
     let settings = bake_core::Settings::resolve(&request, &scene.polygons)
         .map_err(|e| bad_input(anyhow!(e)))?;
-    let bake = bake_core::run(&scene, &settings, events).map_err(|e| Failure {
-        code: if e.is_input() { 1 } else { 3 },
-        error: anyhow!(e).context(format!("{}", job.input.display())),
+    let bake = bake_core::run(&scene, &settings, events).map_err(|e| {
+        let (input, too_large) = (e.is_input(), e.is_too_large());
+        let error = anyhow!(e).context(job.input.display().to_string());
+        match input {
+            true => input_or_too_large(too_large, error),
+            false => internal(error),
+        }
     })?;
-    stages.extend(&bake);
+    so_far.stages.extend(&bake);
     warnings.extend(&bake.warnings);
 
     // 5. Lightmap: irradiance H = F b per element (ρ = 0 elements receive light too).
+    so_far.stage = "lightmap";
     let mut lap = Instant::now();
     let lightmap = match job.target {
         Target::Vertex => None,
@@ -201,7 +352,7 @@ pub fn run<E: Events>(job: &Job, events: &E) -> Result<Done, Failure> {
                     built.requested_texel_size, built.texel_size, job.lightmap.max_size
                 ));
             }
-            stages.record("lightmap", lap);
+            so_far.stages.record("lightmap", lap);
             lap = Instant::now();
             Some(built)
         }
@@ -210,13 +361,14 @@ pub fn run<E: Events>(job: &Job, events: &E) -> Result<Done, Failure> {
 
     // 6. Export: every file of the set is staged (written to a temporary beside it) before
     // any is renamed into place: the links and the report first, the lightmap, OUT last.
+    so_far.stage = "export";
     let exposure = exposure(job, &bake);
     exporter::remove_stale_temporaries(&plan.files);
     events.start("writing", 0);
     let staged = outputs::stage_bakes(job, &scene, &bake, lightmap.as_ref(), exposure);
     events.finish();
     let (vertex_files, lightmap_files) = staged?;
-    stages.record("export", lap);
+    so_far.stages.record("export", lap);
 
     let mut set = exporter::OutputSet::new();
     if let (Some(path), Some(saved)) = (&job.save_links, &bake.saved_links) {
@@ -225,6 +377,7 @@ pub fn run<E: Events>(job: &Job, events: &E) -> Result<Done, Failure> {
             .map_err(internal)?;
     }
     if let Some(path) = &job.report {
+        so_far.stage = "report";
         let baked = report::Baked {
             job,
             scene: &scene,
@@ -232,11 +385,13 @@ pub fn run<E: Events>(job: &Job, events: &E) -> Result<Done, Failure> {
             lightmap: lightmap.as_ref(),
             exposure,
         };
+        let stages = std::mem::take(&mut so_far.stages);
         let report = baked.report(path, &mut warnings, stages, started)?;
         report::stage_report(&mut set, path, &report)
             .with_context(|| format!("cannot write {}", path.display()))
             .map_err(internal)?;
     }
+    so_far.stage = "commit";
     set.append(lightmap_files);
     set.append(vertex_files);
     set.commit()
@@ -336,18 +491,16 @@ fn exposure(job: &Job, bake: &bake_core::Bake) -> f64 {
     }
 }
 
-/// The bake's warnings: shown through [`Events::warn`] as they arise and kept for the report.
+/// The bake's warnings: shown through [`Events::warn`] as they arise and kept for the report
+/// (a failed bake's too).
 pub(crate) struct Warnings<'a, E: Events> {
     events: &'a E,
-    pub lines: Vec<String>,
+    pub lines: &'a mut Vec<String>,
 }
 
 impl<'a, E: Events> Warnings<'a, E> {
-    fn new(events: &'a E) -> Self {
-        Warnings {
-            events,
-            lines: Vec::new(),
-        }
+    fn new(events: &'a E, lines: &'a mut Vec<String>) -> Self {
+        Warnings { events, lines }
     }
 
     pub fn push(&mut self, line: String) {

@@ -47,6 +47,13 @@ pub(crate) fn line(
     if let Some(built) = lightmap {
         hardness += &lightmap_part(built);
     }
+    // A missing OBJ material library bakes its materials as the default grey with no
+    // emission (often a black bake): said here too, where a build log's last line shows it.
+    match scene.stats.material_libraries_missing {
+        0 => {}
+        1 => hardness += ", 1 material library missing (default grey used)",
+        n => hardness += &format!(", {n} material libraries missing (default grey used)"),
+    }
     format!(
         "{} → {}: {} polygons, {} elements, {} transport, {} pairs integrated, residual {:.1e}/{:.1e}/{:.1e}{hardness}, {:.2} s",
         job.input.display(),

@@ -315,6 +315,9 @@ pub struct ImportStats {
     /// Polygons dropped because an earlier polygon of another primitive or node has the same
     /// corners in the same cyclic order (coincident, facing the same way; see the importer).
     pub coincident_dropped: usize,
+    /// OBJ material libraries (`mtllib`) that could not be read: their materials fell back
+    /// to the default grey (a warning names each; the summary line counts them).
+    pub material_libraries_missing: usize,
 }
 
 #[derive(Clone, Debug, PartialEq)]

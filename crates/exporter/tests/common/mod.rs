@@ -69,6 +69,7 @@ pub fn sample_bake() -> Fixture {
             duplicates_dropped: 2,
             against_winding: 3,
             coincident_dropped: 0,
+            material_libraries_missing: 0,
         },
         warnings: vec!["mesh \"lines\": primitive 0 skipped (mode LINES)".into()],
         input_files: Vec::new(),

@@ -27,6 +27,13 @@ impl Stages {
         }
     }
 
+    /// Each finished stage's seconds and peak memory, with `total` up to now.
+    pub fn into_maps(mut self, started: Instant) -> (BTreeMap<String, f64>, BTreeMap<String, f64>) {
+        self.timings
+            .insert("total".to_string(), started.elapsed().as_secs_f64());
+        (self.timings, self.memory)
+    }
+
     /// The stages inside the bake.
     pub fn extend(&mut self, bake: &bake_core::Bake) {
         for (name, seconds) in &bake.timings {

@@ -13,8 +13,10 @@
 //! job fills it from a finished bake (`build.rs`).
 
 mod build;
+mod failed;
 
 pub(crate) use build::{Baked, Stages};
+pub use failed::{read_failed_report, write_failed_report, FailedReport, FailureEntry};
 
 use bake_core::refine::Refinement;
 use bake_core::{Accuracy, Counts, Effects, EnergyBalance, LightStats, TransportChoice};
@@ -491,6 +493,11 @@ fn element_name(report: &Report, index: usize) -> String {
 
 /// Reads a report written by [`write_report`].
 pub fn read_report(path: &Path) -> Result<Report, ReadReportError> {
+    read_json(path)
+}
+
+/// Reads the JSON file `path` as a `T`.
+fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, ReadReportError> {
     let bytes = std::fs::read(path).map_err(|source| ReadReportError::Io {
         path: path.to_path_buf(),
         source,
