@@ -580,11 +580,15 @@ mod tests {
     #[test]
     fn staged_temporaries_are_live_until_committed_or_dropped() {
         let dir = tempfile::tempdir().expect("temp dir");
+        // Sorted: other tests' sets come and go in parallel, and taking one off the list
+        // (swap_remove) reorders the rest.
         let in_dir = |paths: Vec<PathBuf>| -> Vec<PathBuf> {
-            paths
+            let mut mine: Vec<PathBuf> = paths
                 .into_iter()
                 .filter(|p| p.starts_with(dir.path()))
-                .collect()
+                .collect();
+            mine.sort();
+            mine
         };
         let (a, b) = (dir.path().join("a.bin"), dir.path().join("b.gltf"));
         let mut set = OutputSet::new();
