@@ -85,8 +85,9 @@ pub struct Cli {
     pub refine: Option<OnOff>,
     /// The element budget of refinement.
     ///
-    /// [default: 2000, the dense crossover; on the hierarchical transport the grid's elements
-    /// plus a quarter where that is more]
+    /// [default: 2000, the dense crossover; 4000 on a small scene with occluders, which `auto`
+    /// gives the hierarchical transport; else on the hierarchical transport the grid's
+    /// elements plus a quarter where that is more]
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..),
           help_heading = "Accuracy")]
     pub max_elements: Option<u64>,
@@ -218,8 +219,10 @@ pub struct Cli {
     /// grow with n²). `hierarchical`: hierarchical radiosity (Hanrahan, Salzman & Aupperle
     /// 1991): each polygon is a tree over its elements and light moves along links between the
     /// coarsest node pairs whose estimated error is below --link-tolerance (links grow about
-    /// linearly with n). `auto`: dense up to the measured crossover, hierarchical above it; the
-    /// report says which and why.
+    /// linearly with n). `auto`: dense up to the measured crossover, hierarchical above it and
+    /// on small scenes where some polygon can come between others (refined by default, up to
+    /// 4000 elements: more accurate than dense at 2000, in a tenth of the time); the report
+    /// says which and why.
     #[arg(long, value_enum, default_value_t = TransportKind::Auto, help_heading = "Expert")]
     pub transport: TransportKind,
     /// How to solve (I − ρF) b = e exactly: LU or GMRES.

@@ -144,12 +144,26 @@ fn hierarchical_bakes_are_bit_identical_with_one_and_two_threads() {
 }
 
 #[test]
-fn auto_picks_the_transport_by_element_count_and_says_why() {
-    let small = run("cornell.gltf", 60.0, TransportKind::Auto, None);
+fn auto_picks_the_transport_by_element_count_and_occlusion_and_says_why() {
+    // A small convex scene (nothing can occlude): dense, exact and fast.
+    let small = run("cube.gltf", 0.1, TransportKind::Auto, None);
     assert_eq!(small.plan.transport().kind, TransportKind::Dense);
     assert!(small.plan.transport().reason.contains("crossover"));
+    assert!(small.plan.refines_by_default());
     let n = small.mesh.elements.len();
     assert!(n <= bake_core::DENSE_CROSSOVER, "{n}");
+    // A small scene with occluders: the dense transport's rays per element pair would cost
+    // more than the hierarchy's per link, which then refines by default, further.
+    let occluded = run("cornell.gltf", 60.0, TransportKind::Auto, None);
+    assert!(occluded.mesh.elements.len() <= bake_core::DENSE_CROSSOVER);
+    let choice = occluded.plan.transport();
+    assert_eq!(choice.kind, TransportKind::Hierarchical);
+    assert!(choice.reason.contains("come between"), "{}", choice.reason);
+    assert!(occluded.plan.refines_by_default());
+    assert_eq!(
+        occluded.plan.element_budget(occluded.mesh.elements.len()),
+        bake_core::OCCLUDED_MAX_ELEMENTS
+    );
     let large = run("cornell.gltf", 25.0, TransportKind::Auto, None);
     assert!(large.mesh.elements.len() > bake_core::DENSE_CROSSOVER);
     assert_eq!(large.plan.transport().kind, TransportKind::Hierarchical);

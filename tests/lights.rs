@@ -374,8 +374,10 @@ fn blender_room_with_point_and_spot_lights_bakes() {
         "brightest floor element at {:?}, {distance:.2} m from the spot's foot {foot:?}",
         floor.centroid
     );
+    // Emitted = absorbed + escaped to the solve's residual: ~1e-8 from GMRES on the
+    // hierarchy (`auto` gives this small room with occluders the hierarchical transport).
     let energy = report.energy.as_ref().expect("energy");
-    assert!(energy.imbalance.iter().all(|&x| x < 1e-9), "{energy:?}");
+    assert!(energy.imbalance.iter().all(|&x| x < 1e-6), "{energy:?}");
 
     // COLOR_0 under --exposure auto: at most ~1% of the vertices clipped, none black overall.
     let (document, buffers, _) = gltf::import(&out).expect("read the bake");

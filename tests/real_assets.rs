@@ -69,6 +69,15 @@ fn graz_overlap_bakes_with_default_options_like_the_hand_cleaned_file() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (report, warnings) = bake(&input, dir.path(), &[]);
     eprintln!("{warnings:?}");
+    // Small, with occluders: `auto` tries the hierarchy, whose rows (up to 1.9 here) are not
+    // limited, finds no solution and bakes it with the dense transport, saying so.
+    assert_eq!(report.transport.kind.name(), "dense");
+    assert!(
+        report.transport.reason.contains("had no solution"),
+        "{}",
+        report.transport.reason
+    );
+    assert!(warnings.iter().any(|w| w.contains("had no solution")));
     assert_rows_bounded(&report);
     let rows = report
         .accuracy

@@ -4,7 +4,7 @@
 //! non-convergence, and conservation of energy (emitted = absorbed + escaped) on closed and
 //! open scenes. Every run writes into a temporary directory and is checked through its report.
 
-use bake_job::report::{read_report, Report, SolverMethod};
+use bake_job::report::{read_failed_report, read_report, Report, SolverMethod};
 use bake_testkit::{file_names, fixture};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -310,8 +310,23 @@ fn closed_box_with_rho_one_and_an_emitter_is_refused_when_kept() {
                 && (lines[0].contains("singular") || lines[0].contains("did not converge")),
             "{lines:?}"
         );
-        assert_eq!(file_names(dir.path()), ["box.mtl", "box.obj"]);
+        assert_eq!(
+            file_names(dir.path()),
+            ["box.mtl", "box.obj", "report.json"]
+        );
+        check_failed_report(dir.path(), &lines[0]);
     }
+}
+
+/// A failed bake writes no output but its report (issue 34), with the error line it printed
+/// and exit code 1.
+fn check_failed_report(dir: &Path, line: &str) {
+    let failed = read_failed_report(&dir.join("report.json")).expect("the failed bake's report");
+    assert_eq!(
+        Some(failed.failure.error.as_str()),
+        line.strip_prefix("bake: error: ")
+    );
+    assert_eq!(failed.failure.exit_code, 1);
 }
 
 #[test]
@@ -381,7 +396,8 @@ fn an_exhausted_iteration_budget_fails_in_one_line() {
             && line.contains("relative residual"),
         "{line}"
     );
-    assert_eq!(file_names(dir.path()), Vec::<String>::new());
+    assert_eq!(file_names(dir.path()), ["report.json"]);
+    check_failed_report(dir.path(), line);
 }
 
 #[test]

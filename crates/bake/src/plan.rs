@@ -8,7 +8,8 @@
 
 use crate::{
     accuracy, check_memory, BakeError, Settings, Solve, TransportChoice, TransportKind,
-    BRIGHT_AMPLIFICATION, BRIGHT_DENSE_MAX, DENSE_CROSSOVER, LINK_PASSES, ROW_SUM_WARNING_MARGIN,
+    BRIGHT_AMPLIFICATION, BRIGHT_DENSE_MAX, DENSE_CROSSOVER, LINK_PASSES, OCCLUDED_MAX_ELEMENTS,
+    ROW_SUM_WARNING_MARGIN,
 };
 use form_factor::Estimator;
 use transport::{DenseOptions, HierarchicalOptions};
@@ -23,6 +24,9 @@ pub struct SceneSummary {
     pub rho_bound: f64,
     /// Distinct reflectance bands (1 for a grey scene): LU copies a direct solve needs.
     pub bands: usize,
+    /// Whether some polygon can come between two others (asked only of scenes the dense
+    /// transport could take; false otherwise).
+    pub occluded: bool,
 }
 
 /// One solve's plan (see the module docs).
@@ -32,6 +36,9 @@ pub struct Plan {
     transport: TransportChoice,
     solve: Solve,
     estimator: Estimator,
+    /// The hierarchy chosen for a small scene with occlusion: refined by default, up to
+    /// [`OCCLUDED_MAX_ELEMENTS`].
+    small_occluded: bool,
 }
 
 impl Plan {
@@ -44,11 +51,12 @@ impl Plan {
         warnings: &mut Vec<String>,
     ) -> Result<Plan, BakeError> {
         let rho_bound = scene.rho_bound;
-        let transport = choose_transport(
-            settings,
-            usize::try_from(scene.elements).unwrap_or(usize::MAX),
-            rho_bound,
-        );
+        let n = usize::try_from(scene.elements).unwrap_or(usize::MAX);
+        let transport = choose_transport(settings, n, rho_bound, scene.occluded);
+        let small_occluded = transport.kind == TransportKind::Hierarchical
+            && settings.transport == TransportKind::Auto
+            && scene.occluded
+            && n <= DENSE_CROSSOVER;
         let amplification = accuracy::condition_bound(rho_bound, 0.0);
         if transport.kind == TransportKind::Hierarchical && amplification >= BRIGHT_AMPLIFICATION {
             warnings.push(format!(
@@ -66,6 +74,7 @@ impl Plan {
             transport,
             solve,
             estimator: settings.estimator,
+            small_occluded,
         })
     }
 
@@ -79,12 +88,37 @@ impl Plan {
         Plan { estimator, ..self }
     }
 
+    /// The transport `auto` chose first could not be solved and this plan's replaced it
+    /// (`why`, in the reason).
+    pub(crate) fn fell_back(&mut self, why: &str) {
+        self.transport.reason = format!("{}; {why}", self.transport.reason);
+    }
+
     /// Nothing emits or reflects a light: no transport is built (said in the reason).
     pub(crate) fn not_built(&mut self) {
         self.transport.reason = format!(
             "{}; not built: nothing emits or reflects direct light, so b = 0 exactly",
             self.transport.reason
         );
+    }
+
+    /// Whether refinement runs without being asked for: always on the dense transport, and on
+    /// the hierarchy that `auto` chose for a small scene with occlusion (else each refining
+    /// solve of a large scene would link it again).
+    pub fn refines_by_default(&self) -> bool {
+        self.transport.kind != TransportKind::Hierarchical || self.small_occluded
+    }
+
+    /// Refinement's element budget from a bake of `grid` elements: `--max-elements`, else
+    /// [`OCCLUDED_MAX_ELEMENTS`] for a small scene with occlusion on the hierarchy, else
+    /// [`Settings::element_budget`]'s default.
+    pub fn element_budget(&self, grid: usize) -> u64 {
+        match self.settings.max_elements {
+            None if self.small_occluded => OCCLUDED_MAX_ELEMENTS,
+            _ => self
+                .settings
+                .element_budget(grid, self.transport.kind == TransportKind::Hierarchical),
+        }
     }
 
     /// The transport and why.
@@ -142,8 +176,13 @@ impl Plan {
 }
 
 /// Which transport `settings` asks for on a scene of `n` elements whose reflectances are at
-/// most `rho_bound`, and why.
-fn choose_transport(settings: &Settings, n: usize, rho_bound: f64) -> TransportChoice {
+/// most `rho_bound` (`occluded`: some polygon can come between two others), and why.
+fn choose_transport(
+    settings: &Settings,
+    n: usize,
+    rho_bound: f64,
+    occluded: bool,
+) -> TransportChoice {
     // What the hierarchy's links could cost b: their tolerance amplified by the a-priori
     // condition bound, against the target.
     let amplification = accuracy::condition_bound(rho_bound, 0.0);
@@ -184,6 +223,15 @@ fn choose_transport(settings: &Settings, n: usize, rho_bound: f64) -> TransportC
                 ),
             }
         }
+        TransportKind::Auto if n <= DENSE_CROSSOVER && occluded && !bright => TransportChoice {
+            kind: TransportKind::Hierarchical,
+            reason: format!(
+                "{n} elements, at most the crossover of {DENSE_CROSSOVER}, but some polygon can \
+                 come between others: the dense transport would cast shadow rays for every \
+                 element pair that may be hidden, the hierarchy only per link; refined up to \
+                 {OCCLUDED_MAX_ELEMENTS} elements"
+            ),
+        },
         TransportKind::Auto if n <= DENSE_CROSSOVER => TransportChoice {
             kind: TransportKind::Dense,
             reason: format!(

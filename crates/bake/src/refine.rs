@@ -175,8 +175,10 @@ fn not_refined(settings: &Settings, bake: &Bake) -> Option<&'static str> {
         // Saved links are keyed by the grids (and loaded ones were made over them).
         return Some("not refined: --save-links and --load-links keep the grids");
     }
-    let hierarchical = bake.plan.transport().kind == TransportKind::Hierarchical;
-    if hierarchical && !settings.refine_requested && settings.max_elements.is_none() {
+    if !bake.plan.refines_by_default()
+        && !settings.refine_requested
+        && settings.max_elements.is_none()
+    {
         // Each solve of a refining hierarchical bake links the whole scene again: a
         // walkthrough's default bake stays one solve, and `--refine on` asks for more.
         return Some(
@@ -324,7 +326,7 @@ pub fn refine(
     } else {
         MAX_PASSES
     };
-    let budget = settings.element_budget(before, hierarchical);
+    let budget = bake.plan.element_budget(before);
     let mut timings: Vec<(&'static str, f64)> = bake.timings.clone();
     let mut passes = 0;
     let mut split = 0;
