@@ -56,7 +56,7 @@
 //! area it lights every element of its receiver alike, those a desk hides included (and their
 //! reflection then reaches the desk's back face and leaves the scene). So, once linking is done,
 //! every interior node with links that a polygon can come between (or that straddle the
-//! other's plane) gets a mask (`masks`): each of its elements casts 16 shadow rays to points on
+//! other's plane) gets a mask (`masks`): each of its elements casts 25 shadow rays to points on
 //! the node's partners over those links, chosen by their share of its light, and that light is
 //! handed to the elements in proportion to `area × seen fraction` (the sum is unchanged), with
 //! the node's radiosity as a source weighted alike, so the operator stays exactly reciprocal
