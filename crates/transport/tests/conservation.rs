@@ -378,11 +378,19 @@ fn fixture(name: &str) -> std::path::PathBuf {
 /// A 2 × 2-room office floor (4 m rooms, doors, desks open below, one-sided ceiling lamps)
 /// written by `tools/walkthrough` into a fresh temporary folder, meshed at `size` metres.
 fn office(size: f64) -> Scene {
+    office_of(2, size)
+}
+
+/// An `n` × `n`-room office floor as [`office`].
+fn office_of(n: usize, size: f64) -> Scene {
     use bake_walkthrough::{gltf, office};
-    let dir = std::env::temp_dir().join(format!("bake-conservation-{}-{size}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!(
+        "bake-conservation-{}-{n}-{size}",
+        std::process::id()
+    ));
     std::fs::create_dir_all(&dir).expect("temporary folder");
     let path = dir.join("office.gltf");
-    let floor = office::office(office::Rooms { x: 2, z: 2 }, 4.0, 3.0).expect("office floor");
+    let floor = office::office(office::Rooms { x: n, z: n }, 4.0, 3.0).expect("office floor");
     gltf::write(&floor, &path).expect("write the floor");
     let s = scene(&path, size);
     let _ = std::fs::remove_dir_all(&dir);
@@ -437,6 +445,24 @@ fn office_floor_hidden_elements_stay_dark() {
         "{} of {} hidden elements lit",
         c.hidden_lit, c.hidden
     );
+}
+
+/// The larger office floors (4 × 4 and 8 × 8 rooms at 0.25 m, 22 288 and 88 544 elements):
+/// the hierarchy's escape against the particles, within 2 % of the emitted power.
+#[test]
+#[ignore = "88 544 elements: run in a release build"]
+fn office_floors_escape_matches_particle_tracing() {
+    for n in [4, 8] {
+        let s = office_of(n, 0.25);
+        let h = run(&s, &hierarchical());
+        let photons = photon_escape(&s, PHOTONS);
+        println!(
+            "office {n} x {n}: {} elements, escaped {} (hierarchical), {photons} (particles)",
+            s.mesh.elements.len(),
+            h.escaped
+        );
+        assert!((h.escaped - photons).abs() <= 0.02);
+    }
 }
 
 #[test]
