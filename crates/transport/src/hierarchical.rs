@@ -387,12 +387,8 @@ impl HierarchicalTransport {
             next.extend(revisited.links);
             links = next;
         }
-        let use_masks = options.shadow_masks;
-        let masks = if !use_masks {
-            Masks::none(nodes.len())
-        } else {
-            Masks::build(&nodes, &children, n, &links, occluders)
-        };
+        let entries = assemble(&nodes, &links, options.shadow_masks);
+        let masks = Masks::build(&nodes, &children, n, &entries, occluders);
         let stats = HierarchicalStats {
             nodes: nodes.len() as u64,
             links: links.iter().filter(|l| l.g != 0.0).count() as u64,
@@ -409,7 +405,6 @@ impl HierarchicalTransport {
             by_method: [0, 1, 2].map(|k| counters.by_method[k].load(Ordering::Relaxed)),
             passes,
         };
-        let entries = assemble(&nodes, &links, use_masks);
         Ok(HierarchicalTransport {
             n,
             nodes,

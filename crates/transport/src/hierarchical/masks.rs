@@ -62,53 +62,36 @@ impl Masks {
         }
     }
 
-    /// The masks of every interior node that has a [`masked`] link.
+    /// The masks of every interior node with entries flagged `masked` (none when `entries`
+    /// were assembled without masks). A node's partners are its masked entries' sources,
+    /// weighted by their coefficients `G / A` (the node's area is common to them).
     pub(super) fn build(
         nodes: &[Node],
         children: &[u32],
         n: usize,
-        links: &[Link],
+        entries: &Entries,
         occluders: &Occluders,
     ) -> Masks {
         let total = nodes.len();
-        // Per interior node, its masked links' far ends and values, in link order.
-        let mut offsets = vec![0usize; total + 1];
-        for l in links.iter().filter(|l| masked(l)) {
-            for r in [l.p, l.q] {
-                if r as usize >= n {
-                    offsets[r as usize + 1] += 1;
-                }
-            }
-        }
-        for k in 0..total {
-            offsets[k + 1] += offsets[k];
-        }
-        let mut fill = offsets[..total].to_vec();
-        let mut partners = vec![(0u32, 0.0f64); offsets[total]];
-        for l in links.iter().filter(|l| masked(l)) {
-            for (r, s) in [(l.p, l.q), (l.q, l.p)] {
-                if r as usize >= n {
-                    partners[fill[r as usize]] = (s, l.g);
-                    fill[r as usize] += 1;
-                }
-            }
-        }
+        let partners = |r: usize| {
+            let range = entries.offsets[r] as usize..entries.offsets[r + 1] as usize;
+            range
+                .filter(|&k| entries.masked[k])
+                .map(|k| (entries.sources[k], entries.coefficients[k]))
+                .collect::<Vec<(u32, f64)>>()
+        };
         let masked_nodes: Vec<u32> = (n..total)
-            .filter(|&r| offsets[r + 1] > offsets[r])
+            .filter(|&r| {
+                let range = entries.offsets[r] as usize..entries.offsets[r + 1] as usize;
+                entries.masked[range].contains(&true)
+            })
             .map(|r| r as u32)
             .collect();
         let made: Vec<(Vec<u32>, Vec<f64>, DVec3, u64)> = masked_nodes
             .par_iter()
             .map(|&r| {
                 let r = r as usize;
-                mask(
-                    nodes,
-                    children,
-                    n,
-                    r,
-                    &partners[offsets[r]..offsets[r + 1]],
-                    occluders,
-                )
+                mask(nodes, children, n, r, &partners(r), occluders)
             })
             .collect();
         let mut masks = Masks::none(total);

@@ -93,8 +93,8 @@ impl View<'_> {
         };
         // What the entries `lo..hi` of receiver r deliver: the mean irradiance over the node
         // and its gradient (a linear function over the node), summed in entry order; `take`
-        // picks the entries (masked ones or the others).
-        let deliver = |r: usize, take: &dyn Fn(bool) -> bool| -> Delivered<B> {
+        // picks the entries: all (`None`), or those whose masked flag is the given one.
+        let deliver = |r: usize, take: Option<bool>| -> Delivered<B> {
             let (lo, hi) = (
                 self.entries.offsets[r] as usize,
                 self.entries.offsets[r + 1] as usize,
@@ -107,7 +107,7 @@ impl View<'_> {
             let inverse_area = 1.0 / self.nodes[r].surface.area;
             for k in lo..hi {
                 let masked = self.entries.masked[k];
-                if !take(masked) {
+                if take.is_some_and(|t| t != masked) {
                     continue;
                 }
                 let (s, f, grad) = (
@@ -140,16 +140,12 @@ impl View<'_> {
         g.par_chunks_mut(1024).enumerate().for_each(|(chunk, out)| {
             for (k, gr) in out.iter_mut().enumerate() {
                 let r = chunk * 1024 + k;
-                *gr = if r < self.n {
-                    deliver(r, &|_| true)
-                } else {
-                    deliver(r, &|masked| !masked)
-                };
+                *gr = deliver(r, (r >= self.n).then_some(false));
             }
         });
         let shadowed: Vec<Delivered<B>> = (0..masks.node.len())
             .into_par_iter()
-            .map(|m| deliver(masks.node[m] as usize, &|masked| masked))
+            .map(|m| deliver(masks.node[m] as usize, Some(true)))
             .collect();
         // Push: parents before children (reverse creation order). A child receives the
         // parent's linear function averaged over itself, i.e. its value at the child's area
