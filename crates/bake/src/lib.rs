@@ -316,14 +316,12 @@ fn run_refined(
     Ok(bake)
 }
 
-/// Whether `auto` gives `scene` the hierarchy for being small with occluders (its grids at
-/// most the dense crossover).
+/// Whether the plan of `scene`'s grids is the hierarchy `auto` gives a small scene with
+/// occluders (the plan decides, so the fallback follows its rule).
 fn small_occluded_auto(scene: &Scene, settings: &Settings) -> Result<bool, BakeError> {
-    if settings.transport != TransportKind::Auto {
-        return Ok(false);
-    }
     let elements = mesher::element_count(&scene.polygons, settings.subdivision)?;
-    Ok(elements <= DENSE_CROSSOVER as u64 && scene_occluded(scene)?)
+    let summary = scene_summary(scene, settings, elements)?;
+    Ok(Plan::new(settings, &summary, &mut Vec::new())?.small_occluded())
 }
 
 /// Each stage's wall time (s) and the peak memory (MiB) when it ended, in order.
@@ -472,23 +470,35 @@ fn plan_and_mesh(
     };
     // A refined mesh is planned for like the grids: both transports take it (the hierarchical
     // one's trees continue below the grid elements into their quarters).
-    // Only a scene the dense transport could take needs to know (P ≤ n ≤ the crossover: the
-    // pair test stops at the first occludable pair).
-    let occluded = elements <= DENSE_CROSSOVER as u64
-        && settings.transport == TransportKind::Auto
-        && scene_occluded(scene)?;
-    let summary = SceneSummary {
-        elements,
-        rho_bound: scene_rho_bound(scene, settings.max_reflectance),
-        bands: scene_bands(scene),
-        occluded,
-    };
-    let plan = Plan::new(settings, &summary, warnings)?;
+    let plan = Plan::new(
+        settings,
+        &scene_summary(scene, settings, elements)?,
+        warnings,
+    )?;
     let mesh = match given {
         Some(mesh) => mesh,
         None => mesher::mesh(&scene.polygons, settings.subdivision)?,
     };
     Ok((mesh, plan))
+}
+
+/// What the plan needs of `scene` meshed into `elements` elements.
+fn scene_summary(
+    scene: &Scene,
+    settings: &Settings,
+    elements: u64,
+) -> Result<SceneSummary, BakeError> {
+    // Only a scene the dense transport could take needs to know whether it has occluders
+    // (P ≤ n ≤ the crossover: the pair test stops at the first occludable pair).
+    let occluded = elements <= DENSE_CROSSOVER as u64
+        && settings.transport == TransportKind::Auto
+        && scene_occluded(scene)?;
+    Ok(SceneSummary {
+        elements,
+        rho_bound: scene_rho_bound(scene, settings.max_reflectance),
+        bands: scene_bands(scene),
+        occluded,
+    })
 }
 
 /// Whether some polygon of `scene` can come between two others (visibility's conservative

@@ -109,6 +109,11 @@ impl Plan {
         self.transport.kind != TransportKind::Hierarchical || self.small_occluded
     }
 
+    /// Whether this is the hierarchy `auto` chose for a small scene with occluders.
+    pub(crate) fn small_occluded(&self) -> bool {
+        self.small_occluded
+    }
+
     /// Refinement's element budget from a bake of `grid` elements: `--max-elements`, else
     /// [`OCCLUDED_MAX_ELEMENTS`] for a small scene with occlusion on the hierarchy, else
     /// [`Settings::element_budget`]'s default.
