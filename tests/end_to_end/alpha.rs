@@ -8,7 +8,7 @@
 //! Each grate element's ρ is its opaque share (cut-out texels average in as 0). Under a sun
 //! straight down the grate passes half its area's light within 2%.
 
-mod common;
+use crate::common;
 
 use bake_testkit::data_uri;
 use common::{bake, write_json};

@@ -7,7 +7,7 @@
 //!
 //! Skipped with a message when Blender is missing, unless `BAKE_REQUIRE_BLENDER=1`.
 
-mod common;
+use crate::common;
 
 use bake_testkit::{blender_installed, skip, tools_dir, validate_clean};
 use common::bake;

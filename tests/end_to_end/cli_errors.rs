@@ -3,7 +3,7 @@
 //! no report, no temporaries). Also the warning path (a dropped degenerate face), `--quiet`,
 //! `--help` and `--version`.
 
-mod common;
+use crate::common;
 
 use bake_testkit::{file_names, fixture, GltfBuilder, POINTS, TRIANGLES};
 use common::{

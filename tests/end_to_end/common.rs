@@ -59,7 +59,7 @@ where
 
 /// Runs the `bake` binary with `args`, in `dir` when given. A bake that does not say
 /// `--refine` gets `--refine off`: these tests check the uniform mesh they ask for (element
-/// counts, closed forms per element); `tests/refine.rs` bakes with the defaults through
+/// counts, closed forms per element); `tests/end_to_end/refine.rs` bakes with the defaults through
 /// [`bake_default_in`].
 pub fn bake_in<I, S>(dir: Option<&Path>, args: I) -> Run
 where

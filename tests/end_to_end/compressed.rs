@@ -4,9 +4,9 @@
 //! uncompressed outputs that name none of the compression extensions (and that the Khronos
 //! validator passes, where it is installed).
 
-mod common;
+use crate::common;
 
-#[path = "../crates/importer/tests/draco_writer/mod.rs"]
+#[path = "../../crates/importer/tests/draco_writer/mod.rs"]
 mod draco_writer;
 
 use bake_job::report::{read_report, Report};

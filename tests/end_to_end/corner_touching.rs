@@ -25,8 +25,8 @@ v 0.5 -0.5 3
 /// The same scene with every coordinate rounded to f32 (as the importer read it when the
 /// report was filed): each quad's shared corner is then 1.5e-9 in front of the other's plane,
 /// both are clipped to 1.6e-8 slivers, and this pair is integrated (the one that hung).
-const OBJ_F32: &str = include_str!("../crates/form-factor/tests/data/cone-pair-f32.obj");
-const MTL: &str = include_str!("../crates/form-factor/tests/data/cone-pair.mtl");
+const OBJ_F32: &str = include_str!("../../crates/form-factor/tests/data/cone-pair-f32.obj");
+const MTL: &str = include_str!("../../crates/form-factor/tests/data/cone-pair.mtl");
 
 /// The decimal scene: the f32 file with its `v` lines replaced.
 fn decimal_obj() -> String {

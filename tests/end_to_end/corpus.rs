@@ -8,7 +8,7 @@
 //! `skipped: …` on stderr and passes, or fails with `BAKE_REQUIRE_CORPUS=1` or
 //! `BAKE_REQUIRE_ALL=1` (as `.ci/run` sets).
 
-mod common;
+use crate::common;
 
 use bake_testkit::{files_with_extensions, shared_dir, skip};
 use common::run_limited;

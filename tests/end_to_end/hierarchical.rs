@@ -5,7 +5,7 @@
 //! at 0.2 m) so the dense references stay quick in a test build; the `#[ignore]`d
 //! `*_at_acceptance_size` tests run those (`cargo test --release -- --ignored`).
 
-mod common;
+use crate::common;
 
 use bake_core::{Bake, Request, Settings, TransportKind};
 use bake_testkit::fixture;

@@ -16,7 +16,7 @@
 //! The Cornell-like room (`cornell_like_obj`) stands in for `fixtures/cornell.gltf` until that
 //! fixture lands: tests that use it are named `cornell_like_*` so they can be switched.
 
-mod common;
+use crate::common;
 
 use bake_testkit::{file_names, fixture, validator_or_skip, validator_output};
 use common::{bake, write_text};
@@ -1039,7 +1039,7 @@ fn lightmap_outputs_pass_the_khronos_validator() {
 /// lightmaps as baked) and `docs/images/cornell-like-render.png` (the room seen through its
 /// open front, each pixel ρ × the bilinearly sampled lightmap + e: what a viewer shows with
 /// the lightmap set up as the README says). Run with
-/// `cargo test --release --test lightmap -- --ignored readme_pictures`.
+/// `cargo test --release --test end_to_end -- --ignored lightmap::readme_pictures`.
 #[test]
 #[ignore]
 fn readme_pictures() {

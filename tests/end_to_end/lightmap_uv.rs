@@ -20,7 +20,7 @@
 //!   sampled from the written EXR through the written TEXCOORD_1, reads the closed form
 //!   H = I cos θ / (π d²) within 1%.
 
-mod common;
+use crate::common;
 
 use bake_testkit::{blender_or_skip, data_uri, tools_dir, validate_clean};
 use common::{bake, write_json};

@@ -7,7 +7,7 @@
 //! exact there, so the bounds are 1e-6: what is left is the f32 rounding of the glTF's
 //! positions and rotations (measured below 1e-7).
 
-mod common;
+use crate::common;
 
 use bake_job::report::{ElementEntry, Report};
 use bake_testkit::{blender_or_skip, tools_dir, validator_or_skip, validator_output};

@@ -3,7 +3,7 @@
 //! other geometry or link options, a damaged file, the dense transport and a links file that
 //! is also an output are refused with one line.
 
-mod common;
+use crate::common;
 
 use bake_testkit::fixture;
 use common::{bake, report_without_timings};

@@ -6,7 +6,7 @@
 //! row of F sums to 1, so the exact answer is b = e/(1 − ρ) everywhere, with ρ the f32 the
 //! glTF stores (0.999 is 0.99900001287…, which moves b by 1.3e-5 relative).
 
-mod common;
+use crate::common;
 
 use bake_job::report::{read_report, Report};
 use bake_testkit::{GltfBuilder, TRIANGLES};

@@ -3,7 +3,7 @@
 //! unlit room of the two-room scene sees the light only through the doorway, and the result
 //! does not depend on the thread count.
 
-mod common;
+use crate::common;
 
 use bake_job::report::{ElementEntry, Report};
 use bake_testkit::fixture;

@@ -6,7 +6,7 @@
 //! square of side h = sqrt(area) = 0.25 centred on its report centroid c, and a point p lies
 //! on an element when |p − c|∞ ≤ h/2.
 
-mod common;
+use crate::common;
 
 use bake_job::report::{ElementEntry, Report};
 use bake_testkit::{file_names, fixture, validator_or_skip, validator_output};

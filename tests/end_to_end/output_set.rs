@@ -5,7 +5,7 @@
 //! bakes are cleaned up; and `kill -9` at random moments never leaves a mixed or partial set
 //! (`#[ignore]`d: `tools/kill-test` runs it, in CI too).
 
-mod common;
+use crate::common;
 
 use bake_testkit::{file_names, fixture};
 use common::{bake_in, Run};

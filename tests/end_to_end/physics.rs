@@ -9,7 +9,7 @@ use std::process::Command;
 
 /// Runs `bake input out.glb --report r.json --ff-estimator contour args...` and returns the
 /// report. These tests check the physics to ~1e-10, so they use the exact form factors (the
-/// default `auto` estimator keeps each pair within its 1e-3 tolerance; see tests/quality.rs).
+/// default `auto` estimator keeps each pair within its 1e-3 tolerance; see tests/end_to_end/quality.rs).
 fn bake(input: &Path, args: &[&str]) -> Report {
     let dir = tempfile::tempdir().expect("tempdir");
     let (out, report) = (dir.path().join("out.glb"), dir.path().join("report.json"));

@@ -3,7 +3,7 @@
 //! computed from the same element values by another path (the vertex smoothing and `COLOR_0`,
 //! not the atlas); and `--eye`/`--look-at` put the camera inside a room.
 
-mod common;
+use crate::common;
 
 use bake_testkit::fixture;
 use common::bake;

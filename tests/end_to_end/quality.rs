@@ -3,7 +3,7 @@
 //! accuracy ordering against the exact solution is tested in `tools/accuracy-report`, which
 //! owns the reference comparison.)
 
-mod common;
+use crate::common;
 
 use bake_job::report::{read_report, Report};
 use bake_testkit::fixture;

@@ -6,7 +6,7 @@
 //! and the overlapping boxes give the bake of the same file with the duplicate box removed by
 //! hand.
 
-mod common;
+use crate::common;
 
 use bake_job::report::{read_report, Report};
 use bake_testkit::{shared_dir, skip};

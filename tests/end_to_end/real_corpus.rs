@@ -9,7 +9,7 @@
 //! Without the package the test says `skipped: …` and passes, or fails with
 //! `BAKE_REQUIRE_CORPUS=1` or `BAKE_REQUIRE_ALL=1` (as `.ci/run` sets).
 
-mod common;
+use crate::common;
 
 use bake_testkit::{files_with_extensions, glb, glb_chunks, skip, tools_dir};
 use common::run_limited;
@@ -171,7 +171,7 @@ fn every_assimp_gltf2_model_bakes_or_is_refused_in_one_line() {
 
 /// The same models with default options (`--quality normal`), uncompressed, 10 minutes
 /// each: the benchmark of docs/real-assets.md, run by hand with
-/// `cargo test --release --test real_corpus -- --ignored --nocapture`.
+/// `cargo test --release --test end_to_end -- --ignored --nocapture real_corpus::`.
 #[test]
 #[ignore]
 fn default_options_benchmark() {

@@ -4,7 +4,7 @@
 //! What is tested is what a viewer shows: `_RADIOSITY` read back from the output glTF,
 //! interpolated linearly over its triangles, at a 200 × 200 grid of points.
 
-mod common;
+use crate::common;
 
 use bake_testkit::fixture;
 use common::{aim, bake_default_in, bake_json_default, lit_scene};

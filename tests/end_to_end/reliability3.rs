@@ -1,7 +1,7 @@
 //! Issue 34 ("Reliability, round 3"), end to end through the binary: writers never replace
 //! an input or a special file.
 
-mod common;
+use crate::common;
 
 use bake_testkit::{file_names, GltfBuilder, FLOAT, TRIANGLES};
 use common::{bake, write_obj_with_material};

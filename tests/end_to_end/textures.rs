@@ -1,7 +1,7 @@
 //! Textured reflectance end to end: ρ of each element is `baseColorFactor` × the exact mean of
 //! `baseColorTexture` over it (sRGB-decoded), checked against closed forms through the report.
 
-mod common;
+use crate::common;
 
 use bake_job::report::Report;
 use bake_testkit::data_uri;

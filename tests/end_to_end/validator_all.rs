@@ -7,7 +7,7 @@
 //! Skipped with a message when the validator is not installed (`tools/install-validator`),
 //! unless `BAKE_REQUIRE_VALIDATOR=1` (as `tools/test` sets).
 
-mod common;
+use crate::common;
 
 use bake_testkit::{fixtures_dir, validator_or_skip, validator_output};
 use common::bake;

@@ -10,7 +10,7 @@
 //!   `BAKE_REQUIRE_BLENDER=1`;
 //! - the one-line summary a bake ends with.
 
-mod common;
+use crate::common;
 
 use bake_job::report::{read_report, Report};
 use bake_testkit::{blender_or_skip, fixture, skip};

@@ -4,7 +4,7 @@
 //! one triangle; regions of different charts apart), every normal within twice
 //! `CHART_CONE_DEGREES` of its chart's mean, and across chart seams the texels differ by no
 //! more than the solution itself varies within the filter's reach there (the welded-edge
-//! rule of `tests/lightmap.rs`).
+//! rule of `tests/end_to_end/lightmap.rs`).
 //! Prints occupancy, charts, atlas count and time.
 
 use bake_lightmap as lightmap;
@@ -222,7 +222,7 @@ fn grouped_charts_on_a_hundred_thousand_triangles() {
     // Seams across charts: shared edges between polygons of different charts, sampled along
     // the edge through each side's TEXCOORD_1, differ by no more than the solution itself
     // varies where bilinear filtering reads (elements of that material within 2 texels and
-    // an element's size of the point; the rule of `tests/lightmap.rs`' welded edges, at the
+    // an element's size of the point; the rule of `tests/end_to_end/lightmap.rs`' welded edges, at the
     // filter's reach since a chart's texels near a seam also serve its other polygons), plus
     // f32 rounding.
     let reach = 2.0 * map.texel_size + 0.1;

@@ -31,7 +31,7 @@ pub fn skip(variable: &str, why: &str) {
 
 /// [`skip`] for a check that only `variable=1` makes fail, `BAKE_REQUIRE_ALL` not: what a
 /// machine may lack by policy rather than by a missing install (the mount namespaces of
-/// `tests/reliability3.rs`). Everything `.ci/run` installs uses [`skip`].
+/// `tests/end_to_end/reliability3.rs`). Everything `.ci/run` installs uses [`skip`].
 pub fn skip_unless_set(variable: &str, why: &str) {
     assert!(!set(variable), "{variable}=1 but {why}");
     say_skipped(variable, why);
