@@ -2,7 +2,8 @@
 //!
 //! One binary instead of one per file: each of these links the whole pipeline (faer, image, exr,
 //! gltf…), and 26 copies of it cost CI minutes of linking and gigabytes of disk (a CI run ran out of
-//! space). A file's tests are named after it: `cargo test --test end_to_end lightmap::`.
+//! space). A file's tests are named after it: `cargo test --test end_to_end lightmap::`. The
+//! corpus tests, whose limits are wall time, are a binary of their own (`tests/corpora`).
 
 mod common;
 
@@ -11,7 +12,6 @@ mod blender_textures;
 mod cli_errors;
 mod compressed;
 mod corner_touching;
-mod corpus;
 mod hierarchical;
 mod lightmap;
 mod lightmap_uv;
@@ -25,7 +25,6 @@ mod physics;
 mod preview_lightmap;
 mod quality;
 mod real_assets;
-mod real_corpus;
 mod refine;
 mod reliability3;
 mod solver_stress;

@@ -260,7 +260,7 @@ fn sources_swept(polygons: &[Polygon]) -> Vec<Vec<usize>> {
     out
 }
 
-/// Real geometry (Debian's `assimp-testmodels` glTF 2.0 models, as `tests/end_to_end/real_corpus.rs`
+/// Real geometry (Debian's `assimp-testmodels` glTF 2.0 models, as `tests/corpora/real_corpus.rs`
 /// finds them; skipped when absent): the slivers and thin triangles of real meshes, with a
 /// pseudo-random field per element (ratio 20 between neighbours: the steepest a bake
 /// shows). Models above 100 000 polygons are left out (debug-build time). Prints each

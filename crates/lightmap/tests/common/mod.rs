@@ -26,7 +26,7 @@ pub fn polygon(vertices: Vec<DVec3>, material: usize) -> Polygon {
 }
 
 /// Debian's `assimp-testmodels` glTF 2.0 models (`/usr/share/assimp/models/glTF2`, as
-/// `tests/end_to_end/real_corpus.rs` finds them), sorted; `None`, after saying `skipped: …`, when the
+/// `tests/corpora/real_corpus.rs` finds them), sorted; `None`, after saying `skipped: …`, when the
 /// package is not installed.
 pub fn assimp_models() -> Option<Vec<std::path::PathBuf>> {
     let dir = std::path::Path::new("/usr/share/assimp/models/glTF2");

@@ -166,15 +166,17 @@ fn bake(input: &Path, out: &Path, report: &Path, options: &[&str], limit: Durati
 
 #[test]
 fn every_assimp_gltf2_model_bakes_or_is_refused_in_one_line() {
+    let _alone = crate::one_at_a_time();
     corpus(&["--quality", "draft"], TIME_LIMIT, true);
 }
 
 /// The same models with default options (`--quality normal`), uncompressed, 10 minutes
 /// each: the benchmark of docs/real-assets.md, run by hand with
-/// `cargo test --release --test end_to_end -- --ignored --nocapture real_corpus::`.
+/// `cargo test --release --test corpora -- --ignored --nocapture real_corpus::`.
 #[test]
 #[ignore]
 fn default_options_benchmark() {
+    let _alone = crate::one_at_a_time();
     corpus(&[], Duration::from_secs(600), false);
 }
 

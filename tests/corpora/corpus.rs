@@ -94,6 +94,7 @@ fn error_kind(line: &str) -> String {
 
 #[test]
 fn every_corpus_file_bakes_or_is_refused_in_one_line() {
+    let _alone = crate::one_at_a_time();
     let corpus = shared_dir().join("corpus");
     if !corpus.is_dir() {
         skip(
