@@ -633,6 +633,10 @@ fn estimate_error(p: &transports::Problem, done: &transports::Transported) -> Ve
         }),
         sampled: &sampled,
         samples: done.samples,
+        link_error: done
+            .link_error
+            .as_ref()
+            .map(|[local, carried]| error::LinkMisses { local, carried }),
     })
 }
 

@@ -66,6 +66,9 @@ pub(crate) struct Transported {
     /// The dense transport's row-sum limit (what geometry would have created).
     pub row_sums: Option<RowSumLimit>,
     pub saved_links: Option<SavedLinks>,
+    /// Per element and band: the irradiance the links' models miss, their own and the other
+    /// elements' after one reflection (hierarchical transport only; [`crate::error::LinkMisses`]).
+    pub link_error: Option<[Vec<[f64; BANDS]>; 2]>,
 }
 
 /// Nothing emits and no surface reflects a light's direct light: b = 0 is the exact solution,
@@ -95,6 +98,7 @@ pub(crate) fn dark(p: &Problem) -> Result<Transported, BakeError> {
         samples: 0,
         row_sums: None,
         saved_links: None,
+        link_error: None,
     })
 }
 
@@ -162,12 +166,23 @@ fn solved(
     stages: &mut Stages,
     key: u64,
 ) -> Result<Transported, BakeError> {
-    let (solution, irradiance, energy) = {
+    let (solution, irradiance, energy, link_error) = {
         let view = built.operator.view().map_err(BakeError::Internal)?;
         let solution = solve(p, view, progress)?;
         stages.record("solve");
         let (irradiance, energy) = p.finish(&view, &solution)?;
-        (solution, irradiance, energy)
+        let link_error = view.link_error(&solution.b).map(|local| {
+            // F (ρ δH): the other elements' misses after one reflection.
+            let reflected: Vec<[f64; BANDS]> = local
+                .iter()
+                .zip(p.rho)
+                .map(|(m, r)| [0, 1, 2].map(|c| r[c] * m[c]))
+                .collect();
+            let mut carried = vec![[0.0; BANDS]; local.len()];
+            solver::Operator::apply_bands(&view, &reflected, &mut carried);
+            [local, carried]
+        });
+        (solution, irradiance, energy, link_error)
     };
     let row_sums = built.row_sums().cloned();
     let counts = counts(&built.stats);
@@ -185,6 +200,7 @@ fn solved(
         samples: built.samples,
         row_sums,
         saved_links,
+        link_error,
     })
 }
 

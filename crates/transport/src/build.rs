@@ -131,6 +131,16 @@ impl BuiltOperator {
 }
 
 impl<'a> View<'a> {
+    /// Per element and band, the irradiance error the links' models leave with radiosities
+    /// `b` ([`HierarchicalTransport::link_error`]); `None` for the dense transport, whose
+    /// every pair is integrated.
+    pub fn link_error(&self, b: &[[f64; BANDS]]) -> Option<Vec<[f64; BANDS]>> {
+        match self {
+            View::Dense(_) => None,
+            View::Hierarchical(h) => Some(h.link_error(b)),
+        }
+    }
+
     /// The entries, when the operator has them (what a direct solve factorises).
     pub fn dense(self) -> Option<DenseMatrix<'a>> {
         match self {

@@ -130,8 +130,8 @@ pub struct HierarchicalOptions {
 }
 
 /// Memory per kept link: the link itself while refining (72 bytes) and two operator entries
-/// (source index, coefficient and two gradients, 36 bytes each, plus offsets).
-pub const BYTES_PER_LINK: u64 = 160;
+/// (source index, coefficient, two gradients and two residuals, 44 bytes each, plus offsets).
+pub const BYTES_PER_LINK: u64 = 176;
 
 impl Default for HierarchicalOptions {
     fn default() -> Self {
@@ -425,6 +425,77 @@ impl HierarchicalTransport {
             masks: &self.masks,
             accuracy: self.accuracy,
         }
+    }
+
+    /// Per element and band: an estimate of the irradiance error its links' linear models leave
+    /// with the radiosities `b` (per element). Each link (through an ancestor or the element
+    /// itself) from source s misses up to `F (residual_r · B_s + residual_s · ΔB_s)`: the
+    /// terms of the linking criterion (module docs) without ρ, with B_s the mean and ΔB_s the
+    /// spread of `b` over s (the residuals are ranges, max − min, of the fit's residual: at
+    /// most twice the largest deviation). The links' misses are of either sign and
+    /// independent, so they are combined in quadrature. Measured against the exact matrix by
+    /// the test `link_error_bounds_the_coarse_links_irradiance_error` on a box: 96% of
+    /// element-bands bounded, median true/estimate 0.25 (their plain sum: 100%, 0.05; half the
+    /// ranges in quadrature: 82%, 0.50). Times ρ it is the links'
+    /// part of the error of b for one bounce; element–element links contribute nothing (their
+    /// kernel is integrated, not modelled).
+    pub fn link_error(&self, b: &[[f64; BANDS]]) -> Vec<[f64; BANDS]> {
+        let total = self.nodes.len();
+        // Per node and band: the area-weighted mean of b (what a link sends) and its spread.
+        let mut mean = vec![[0.0; BANDS]; total];
+        mean[..self.n].copy_from_slice(&b[..self.n]);
+        for u in self.n..total {
+            let node = &self.nodes[u];
+            let mut sum = [0.0; BANDS];
+            for &c in &self.children[node.first as usize..(node.first + node.count) as usize] {
+                let area = self.nodes[c as usize].surface.area;
+                for (v, m) in sum.iter_mut().zip(mean[c as usize]) {
+                    *v += area * m;
+                }
+            }
+            mean[u] = sum.map(|v| v / node.surface.area);
+        }
+        let spreads: Vec<Vec<f64>> = (0..BANDS)
+            .map(|c| {
+                let values: Vec<f64> = b.iter().map(|v| v[c]).collect();
+                node_range(&self.nodes, &self.children, self.n, &values).1
+            })
+            .collect();
+        let e = &self.entries;
+        let mut error: Vec<[f64; BANDS]> = (0..total)
+            .into_par_iter()
+            .map(|r| {
+                let mut sum = [0.0; BANDS];
+                for k in e.offsets[r] as usize..e.offsets[r + 1] as usize {
+                    let [over_r, over_s] = e.residuals[k].map(f64::from);
+                    if over_r == 0.0 && over_s == 0.0 {
+                        continue;
+                    }
+                    let (s, f) = (e.sources[k] as usize, e.coefficients[k]);
+                    for (c, spread) in spreads.iter().enumerate() {
+                        // In quadrature (above): squares here, the root at the leaves.
+                        let miss = f * (over_r * mean[s][c] + over_s * spread[s]);
+                        sum[c] += miss * miss;
+                    }
+                }
+                sum
+            })
+            .collect();
+        // Down the trees: parents (created after their children) first.
+        for u in (self.n..total).rev() {
+            let node = &self.nodes[u];
+            let above = error[u];
+            for &c in &self.children[node.first as usize..(node.first + node.count) as usize] {
+                for (v, a) in error[c as usize].iter_mut().zip(above) {
+                    *v += a;
+                }
+            }
+        }
+        error.truncate(self.n);
+        for v in error.iter_mut().flatten() {
+            *v = v.sqrt();
+        }
+        error
     }
 
     /// What building it did.

@@ -457,6 +457,7 @@ fn check_finite(report: &Report) -> Result<(), ExportError> {
                     e.max_form_factors,
                     e.max_visibility,
                     e.max_solver,
+                    e.max_links,
                 ]
                 .into_iter()
                 .flatten()

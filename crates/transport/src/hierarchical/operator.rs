@@ -19,6 +19,10 @@ pub(super) struct Entries {
     /// Per entry: whether its light goes through the masks of its interior ends
     /// ([`masks::masked`]); all false when the operator has no masks (the coarse solves).
     pub(super) masked: Vec<bool>,
+    /// Per entry: the kernel's relative variation that the link's linear model leaves over
+    /// the receiver and over the source (the links' `residual`, receiver first; 0 over an
+    /// element), for the error estimate ([`HierarchicalTransport::link_error`]).
+    pub(super) residuals: Vec<[f32; 2]>,
 }
 
 /// The operator over borrowed trees and entries: the final transport and the coarse solves
@@ -253,6 +257,7 @@ pub(super) fn assemble(nodes: &[Node], links: &[Link], masks: bool) -> Entries {
     let mut coefficients = vec![0.0f64; entries];
     let mut gradients = vec![[[0.0f32; 3]; 2]; entries];
     let mut masked = vec![false; entries];
+    let mut residuals = vec![[0.0f32; 2]; entries];
     for l in links() {
         // The gradient was fitted to the unoccluded kernel: scale it by the visible fraction.
         let visible = if l.g0 > 0.0 { (l.g / l.g0) as f32 } else { 0.0 };
@@ -266,6 +271,7 @@ pub(super) fn assemble(nodes: &[Node], links: &[Link], masks: bool) -> Entries {
                 l.gradient[1 - side].map(|v| v * visible),
             ];
             masked[k] = masks && masks::masked(l);
+            residuals[k] = [l.residual[side], l.residual[1 - side]].map(|v| v.max(0.0));
             fill[r as usize] += 1;
         }
     }
@@ -275,5 +281,6 @@ pub(super) fn assemble(nodes: &[Node], links: &[Link], masks: bool) -> Entries {
         coefficients,
         gradients,
         masked,
+        residuals,
     }
 }
