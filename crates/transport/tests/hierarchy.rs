@@ -419,26 +419,53 @@ impl bake_transport::Progress for Quiet {
     fn finish(&self) {}
 }
 
+/// The box of [`box_walls`] meshed, with its occluders, the first polygon emitting and every
+/// element reflecting half: what [`BoxScene::problem`] lends to `bake_transport::build`.
+struct BoxScene {
+    polygons: Vec<Polygon>,
+    mesh: mesher::ElementMesh,
+    occluders: Occluders,
+    e: Vec<[f64; 3]>,
+    rho: Vec<[f64; 3]>,
+}
+
+impl BoxScene {
+    fn new(subdivision: Subdivision) -> BoxScene {
+        let polygons = box_walls();
+        let mesh = mesher::mesh(&polygons, subdivision).expect("mesh");
+        let occluders = Occluders::new(&polygons).expect("occluders");
+        let e = first_polygon_emits(&mesh);
+        let rho = vec![[0.5; 3]; mesh.elements.len()];
+        BoxScene {
+            polygons,
+            mesh,
+            occluders,
+            e,
+            rho,
+        }
+    }
+
+    fn problem(&self) -> bake_transport::Problem<'_> {
+        bake_transport::Problem {
+            polygons: &self.polygons,
+            mesh: &self.mesh,
+            occluders: &self.occluders,
+            rho: &self.rho,
+            source: &self.e,
+        }
+    }
+}
+
 /// `transport::build` gives the same operator as building it directly, and its view passes
 /// on what the operator says of itself: the hierarchy's rows are not bounded by 1 (each
 /// element gets its ancestors' averages), a dense matrix's are; only the dense one has
 /// entries for LU, only the hierarchy links to save.
 #[test]
 fn build_gives_each_kind_and_its_view_says_what_it_can_do() {
-    let polygons = box_walls();
-    let mesh = mesher::mesh(&polygons, Subdivision::Count(3)).expect("mesh");
-    let (direct, _) = build_on(&polygons, mesh.clone(), 0.01);
-    let occluders = Occluders::new(&polygons).expect("occluders");
-    let n = mesh.elements.len();
-    let e = first_polygon_emits(&mesh);
-    let rho = vec![[0.5; 3]; n];
-    let problem = bake_transport::Problem {
-        polygons: &polygons,
-        mesh: &mesh,
-        occluders: &occluders,
-        rho: &rho,
-        source: &e,
-    };
+    let scene = BoxScene::new(Subdivision::Count(3));
+    let (polygons, mesh, n) = (&scene.polygons, &scene.mesh, scene.mesh.elements.len());
+    let (direct, _) = build_on(polygons, mesh.clone(), 0.01);
+    let problem = scene.problem();
     let hierarchical = bake_transport::Options::Hierarchical(HierarchicalOptions {
         link_tolerance: 0.01,
         estimator: Estimator::Contour,
@@ -593,19 +620,9 @@ fn saved_links_keep_their_shadow_masks() {
 /// estimate is 0.
 #[test]
 fn link_error_bounds_the_coarse_links_irradiance_error() {
-    let polygons = box_walls();
-    let mesh = mesher::mesh(&polygons, Subdivision::MaxSize(0.2)).expect("mesh");
-    let occluders = Occluders::new(&polygons).expect("occluders");
-    let n = mesh.elements.len();
-    let e = first_polygon_emits(&mesh);
-    let rho = vec![[0.5; 3]; n];
-    let problem = bake_transport::Problem {
-        polygons: &polygons,
-        mesh: &mesh,
-        occluders: &occluders,
-        rho: &rho,
-        source: &e,
-    };
+    let scene = BoxScene::new(Subdivision::MaxSize(0.2));
+    let (polygons, mesh, n) = (&scene.polygons, &scene.mesh, scene.mesh.elements.len());
+    let problem = scene.problem();
     let dense = bake_transport::Options::Dense(bake_transport::DenseOptions {
         estimator: Estimator::Contour,
         contour: ContourOptions::default(),
@@ -628,7 +645,7 @@ fn link_error_bounds_the_coarse_links_irradiance_error() {
     view.apply_bands(&x, &mut exact);
     let (mut bounded, mut ratios) = (0, Vec::new());
     for tolerance in [3e-2, 1e-2] {
-        let (h, _) = build(&polygons, Subdivision::MaxSize(0.2), tolerance);
+        let (h, _) = build(polygons, Subdivision::MaxSize(0.2), tolerance);
         let mut coarse = vec![[0.0; 3]; n];
         h.apply_bands(&x, &mut coarse);
         let estimate = h.link_error(&x);
@@ -647,7 +664,7 @@ fn link_error_bounds_the_coarse_links_irradiance_error() {
     println!("bounded {share:.3}, median truth/estimate {median:.3}");
     assert!(share >= 0.95, "bounded {share}");
     assert!(median >= 0.1, "median truth/estimate {median}");
-    let (fine, _) = build(&polygons, Subdivision::Count(2), 1e-9);
+    let (fine, _) = build(polygons, Subdivision::Count(2), 1e-9);
     assert!(fine
         .link_error(&x[..fine.n()])
         .iter()

@@ -19,6 +19,7 @@ mod doc;
 mod measure;
 mod peak;
 mod plot;
+mod presets;
 mod refinement;
 
 use anyhow::{bail, Context, Result};
@@ -62,6 +63,8 @@ struct Options {
     doc: Option<PathBuf>,
     /// Only the refinement on/off sweep (its section of the doc).
     refinement: bool,
+    /// Only the presets against the uniform front (their section of the doc).
+    presets: bool,
 }
 
 fn main() -> Result<()> {
@@ -77,6 +80,18 @@ fn run(options: &Options) -> Result<()> {
         if let Some(path) = &options.doc {
             let old = std::fs::read_to_string(path).unwrap_or_default();
             let text = refinement::splice(&old, &refinement::markdown(&rows));
+            std::fs::write(path, text).with_context(|| format!("{}", path.display()))?;
+            eprintln!("wrote {}", path.display());
+        }
+        return Ok(());
+    }
+    if options.presets {
+        let rows = presets::sweep(&root, &options.out, options.quick)?;
+        let section = presets::markdown(&rows);
+        println!("{section}");
+        if let Some(path) = &options.doc {
+            let old = std::fs::read_to_string(path).unwrap_or_default();
+            let text = refinement::splice_between(&old, presets::BEGIN, presets::END, &section);
             std::fs::write(path, text).with_context(|| format!("{}", path.display()))?;
             eprintln!("wrote {}", path.display());
         }
@@ -145,6 +160,16 @@ fn run(options: &Options) -> Result<()> {
             }
             _ => text,
         };
+        // So is the presets section (`--presets`).
+        let text = match (old.find(presets::BEGIN), old.find(presets::END)) {
+            (Some(a), Some(b)) if b > a => refinement::splice_between(
+                &text,
+                presets::BEGIN,
+                presets::END,
+                &old[a..b + presets::END.len()],
+            ),
+            _ => text,
+        };
         std::fs::write(path, text).with_context(|| format!("{}", path.display()))?;
         eprintln!("wrote {}", path.display());
     }
@@ -160,6 +185,7 @@ fn parse_args() -> Result<Options> {
         out: root.join("docs/accuracy"),
         doc: Some(root.join("docs/accuracy.md")),
         refinement: false,
+        presets: false,
     };
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
@@ -170,6 +196,7 @@ fn parse_args() -> Result<Options> {
             "--no-doc" => options.doc = None,
             "--cube-only" => options.cornell = false,
             "--refinement" => options.refinement = true,
+            "--presets" => options.presets = true,
             "--cube-reference" => {
                 options.cube_reference = args
                     .next()
@@ -178,9 +205,10 @@ fn parse_args() -> Result<Options> {
             }
             "-h" | "--help" => {
                 println!(
-                    "usage: accuracy-report [--quick] [--cube-only] [--refinement] [--cube-reference N] \
-                     [--out DIR] [--doc FILE | --no-doc]\n\
+                    "usage: accuracy-report [--quick] [--cube-only] [--refinement] [--presets] \
+                     [--cube-reference N] [--out DIR] [--doc FILE | --no-doc]\n\
                      --refinement: only the refinement on/off sweep and its section of the doc\n\
+                     --presets: only the presets against the uniform front and their section\n\
                      defaults: --cube-reference 48 --out docs/accuracy --doc docs/accuracy.md \
                      (workspace root)"
                 );
@@ -654,6 +682,7 @@ mod tests {
             out: dir.path().join("img"),
             doc: Some(dir.path().join("accuracy.md")),
             refinement: false,
+            presets: false,
         };
         run(&options).unwrap();
         let csv = std::fs::read_to_string(options.out.join("accuracy.csv")).unwrap();

@@ -64,7 +64,7 @@ fn levels_within(ratio: f64) -> u8 {
 }
 
 /// The sun-lit floor and its blocker as a glTF (+ .bin) in `dir`.
-fn write_floor(dir: &Path) -> Result<std::path::PathBuf> {
+pub fn write_floor(dir: &Path) -> Result<std::path::PathBuf> {
     let quads: [[[f32; 3]; 4]; 2] = [
         [
             [-5.0, 0.0, -5.0],
@@ -109,7 +109,7 @@ fn write_floor(dir: &Path) -> Result<std::path::PathBuf> {
 
 /// The displayed field's RMS error relative to the lit value and the share of points within
 /// 2%, over the 200 × 200 grid of floor points farther than 5 cm from the shadow's edge.
-fn displayed_errors(mesh: &ElementMesh, b: &[[f64; 3]]) -> (f64, f64) {
+pub fn displayed_errors(mesh: &ElementMesh, b: &[[f64; 3]]) -> (f64, f64) {
     let lit = RHO * SUN / std::f64::consts::PI;
     let smoothed = mesh.smooth(b);
     let cells = 100usize;
@@ -417,13 +417,18 @@ pub const END: &str = "<!-- /refinement -->";
 
 /// `doc` with its refinement section replaced by `section` (appended when it has none).
 pub fn splice(doc: &str, section: &str) -> String {
-    match (doc.find(BEGIN), doc.find(END)) {
+    splice_between(doc, BEGIN, END, section)
+}
+
+/// `doc` with the part from `begin` to `end` replaced by `section` (appended when it has none).
+pub fn splice_between(doc: &str, begin: &str, end: &str, section: &str) -> String {
+    match (doc.find(begin), doc.find(end)) {
         (Some(a), Some(b)) if b > a => {
             format!(
                 "{}{}{}",
                 &doc[..a],
                 section.trim_end(),
-                &doc[b + END.len()..]
+                &doc[b + end.len()..]
             )
         }
         _ => format!("{}\n\n{}", doc.trim_end(), section),
