@@ -919,6 +919,32 @@ fn bad_lightmap_options_are_refused() {
     }
 }
 
+/// Charts that cannot fit the atlas limits are the input's problem (exit 1, one line that
+/// names the file and what to change), not an internal error (3), and nothing is written.
+#[test]
+fn charts_past_the_atlas_limits_are_refused_as_input() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let out = dir.path().join("a.gltf");
+    let cube = fixture("cube.gltf");
+    // Six walls of at least 64 texels each cannot share one 16 × 16 atlas.
+    let run = bake([
+        "--lightmap-max".as_ref(),
+        "16".as_ref(),
+        "--lightmap-atlases".as_ref(),
+        "1".as_ref(),
+        cube.as_os_str(),
+        out.as_os_str(),
+    ]);
+    assert_eq!(run.code, Some(1), "{run:#?}");
+    let lines = run.error_lines();
+    assert_eq!(lines.len(), 1, "{run:#?}");
+    assert!(
+        lines[0].contains("cube.gltf") && lines[0].contains("--lightmap-max"),
+        "{lines:?}"
+    );
+    assert!(file_names(dir.path()).is_empty(), "nothing written");
+}
+
 #[test]
 fn images_read_back_and_the_gltf_re_reads() {
     let dir = tempfile::tempdir().expect("a temporary directory");

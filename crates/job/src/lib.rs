@@ -475,9 +475,25 @@ fn build_lightmap<E: Events>(
         job.lightmap.uv,
     );
     events.finish();
-    built
-        .with_context(|| format!("{}: cannot build the lightmap", job.input.display()))
-        .map_err(internal)
+    built.map_err(|e| {
+        // Too many charts for the atlas limits is the input's (exit 1, with what to change),
+        // not an internal error; more memory would not help (not exit 4).
+        let hint = match e {
+            lightmap::LightmapError::TooLarge { .. } => {
+                " (raise --lightmap-max or --lightmap-atlases, or bake --target vertex)"
+            }
+            _ => "",
+        };
+        let input = e.is_input();
+        let error = anyhow!(e).context(format!(
+            "{}: cannot build the lightmap{hint}",
+            job.input.display()
+        ));
+        match input {
+            true => bad_input(error),
+            false => internal(error),
+        }
+    })
 }
 
 /// The exposure the vertex bake uses (`auto`: from the elements' radiosities).

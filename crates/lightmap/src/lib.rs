@@ -235,6 +235,17 @@ pub enum LightmapError {
     Encode { what: &'static str, message: String },
 }
 
+impl LightmapError {
+    /// Whether the input is what cannot be mapped (too many charts for the atlas limits, an
+    /// unusable authored layout), rather than a bug or an encoder failing.
+    pub fn is_input(&self) -> bool {
+        matches!(
+            self,
+            LightmapError::TooLarge { .. } | LightmapError::AuthoredUv(_)
+        )
+    }
+}
+
 /// Builds the lightmap of `polygons` (the importer's polygons, world space) from their element
 /// mesh and per-element irradiance H (3 bands, same units as e and b), with generated charts.
 pub fn build(
