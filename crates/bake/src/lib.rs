@@ -1032,11 +1032,12 @@ fn limit_reflectance(
 
 /// Bytes every element costs whatever the transport: the element (80 B) and its grid
 /// vertices, ρ, e, the lights' share, the source term, b and H (24 B each), the trees'
-/// nodes, the error estimate and the exporter's vertex attributes. Measured (issue 34): the
-/// whole process's peak RSS on the cube, hierarchical, no refinement, grew by 373 MB from
-/// 98 304 to 393 216 elements (`--subdiv 128` → `256`; 61 558 → 124 736 links, ~10 MB of
-/// them), 1 260 B per element; rounded up. (It said 512 B before it was measured.)
-pub const BYTES_PER_ELEMENT: u64 = 1_300;
+/// nodes, the error estimate (with the links' misses) and the exporter's vertex attributes.
+/// Measured by `tools/memory-per-element`, which fails when this is too low: the whole
+/// process's peak RSS on the cube, hierarchical, no refinement, vertex colours, from 98 304 to
+/// 393 216 elements (`--subdiv 128` → `256`): 1 318 B per element (issue 31's links part
+/// added ~60 B to the 1 260 measured before it); rounded up.
+pub const BYTES_PER_ELEMENT: u64 = 1_400;
 
 /// The memory a bake of `n` elements needs at least: [`BYTES_PER_ELEMENT`] each, plus for the
 /// dense transport the n × n matrix F (8 B per entry) and, for the direct solver, one n × n
