@@ -16,6 +16,7 @@
 pub mod accuracy;
 pub mod advice;
 pub mod error;
+pub mod escape;
 mod plan;
 pub mod presets;
 pub mod refine;
@@ -223,6 +224,9 @@ pub struct Bake {
     pub irradiance: Option<Vec<[f64; BANDS]>>,
     /// Delivered + emitted = absorbed + escaped, per band.
     pub energy: EnergyBalance,
+    /// Where the escaping light goes (openings, back faces), estimated by rays independently of
+    /// the transport ([`escape`]).
+    pub escape: escape::Escape,
     pub counts: Counts,
     pub effects: visibility::Effects,
     /// Per element: the estimated bound on `|b − b̄|` and its parts ([`error`]).
@@ -418,6 +422,10 @@ pub(crate) fn run_mesh(
         transports::dense(&problem, progress, &mut stages, &mut warnings)?
     };
     stages.record("energy");
+    let escape = escape::estimate(&mesh, &done.solution.b, &occluders, done.energy.escaped);
+    if escape.rays > 0 {
+        stages.record("escape");
+    }
 
     let accuracy = accuracy_of(&plan, rho_max, &done);
     let error = estimate_error(&problem, &done);
@@ -446,6 +454,7 @@ pub(crate) fn run_mesh(
         plan,
         irradiance,
         energy,
+        escape,
         counts,
         effects,
         accuracy,

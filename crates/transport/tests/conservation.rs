@@ -22,7 +22,7 @@ use mesher::Subdivision;
 use rayon::prelude::*;
 use solver::{IterativeOptions, Operator, BANDS};
 use std::path::Path;
-use visibility::{Occluders, SplitMix64};
+use visibility::{cosine_direction, point_on_element, Occluders, SplitMix64};
 
 struct Quiet;
 impl Progress for Quiet {
@@ -268,7 +268,7 @@ fn photon_escape(s: &Scene, photons: u64) -> f64 {
                 let e_sum: f64 = e.iter().sum();
                 // Weights per band, summing to 1 (a share of the emitted power).
                 let mut w = e.map(|v| v / e_sum);
-                let mut at = point_on(&s.mesh, k, &mut rng);
+                let mut at = point_on_element(&s.mesh, k, &mut rng);
                 let (mut normal, mut polygon) = (el.normal, el.polygon as usize);
                 loop {
                     let dir = cosine_direction(normal, &mut rng);
@@ -300,35 +300,6 @@ fn photon_escape(s: &Scene, photons: u64) -> f64 {
         .iter()
         .sum();
     escaped / (photons / chunks * chunks) as f64
-}
-
-/// A uniform point of element `k` (a triangle, or a quad as two triangles by area).
-fn point_on(mesh: &mesher::ElementMesh, k: usize, rng: &mut SplitMix64) -> DVec3 {
-    let el = &mesh.elements[k];
-    let c = el.corners.map(|i| mesh.vertices[i as usize]);
-    let triangle = |a: DVec3, b: DVec3, c: DVec3, rng: &mut SplitMix64| {
-        let (u, v) = (rng.next_f64(), rng.next_f64());
-        let su = u.sqrt();
-        a * (1.0 - su) + b * (su * (1.0 - v)) + c * (su * v)
-    };
-    if el.sides == 3 {
-        return triangle(c[0], c[1], c[2], rng);
-    }
-    let first = (c[1] - c[0]).cross(c[2] - c[0]).length();
-    let second = (c[2] - c[0]).cross(c[3] - c[0]).length();
-    if rng.next_f64() * (first + second) < first {
-        triangle(c[0], c[1], c[2], rng)
-    } else {
-        triangle(c[0], c[2], c[3], rng)
-    }
-}
-
-/// A direction about `normal` with density cos θ / π (Malley's method).
-fn cosine_direction(normal: DVec3, rng: &mut SplitMix64) -> DVec3 {
-    let (u, v) = (rng.next_f64(), rng.next_f64());
-    let (r, phi) = (u.sqrt(), 2.0 * std::f64::consts::PI * v);
-    let (t, b) = normal.any_orthonormal_pair();
-    (t * (r * phi.cos()) + b * (r * phi.sin()) + normal * (1.0 - u).max(0.0).sqrt()).normalize()
 }
 
 /// Particles per escape estimate: the escaped share's standard error is below

@@ -35,7 +35,9 @@ mod geometry;
 mod sampling;
 
 pub use geometry::Patch;
-pub use sampling::{pair_seed, rays_for, strata, Pattern, SplitMix64};
+pub use sampling::{
+    cosine_direction, pair_seed, point_on_element, rays_for, strata, Pattern, SplitMix64,
+};
 
 use bvh::{Slabs, Tree};
 use geometry::{facing, may_block, may_block_light, Piece};
@@ -438,13 +440,24 @@ impl Occluders {
                     return;
                 }
             }
-            // Nearest first; at equal distance the lower index, so the answer does not
-            // depend on the visiting order.
-            if best.is_none_or(|b| t < b.t || (t == b.t && k < b.polygon)) {
+            // Nearest first; at the same distance (within rounding: a double-sided face's two
+            // sides are coincident polygons) the one met from the front, then the lower index,
+            // so the answer does not depend on the visiting order.
+            let front = n.dot(q - p) < 0.0;
+            let better = |b: &Hit| {
+                if (t - b.t).abs() > 1e-12 {
+                    t < b.t
+                } else if front != b.front {
+                    front
+                } else {
+                    k < b.polygon
+                }
+            };
+            if best.as_ref().is_none_or(better) {
                 best = Some(Hit {
                     polygon: k,
                     t,
-                    front: n.dot(q - p) < 0.0,
+                    front,
                 });
             }
         });

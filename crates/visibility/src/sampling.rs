@@ -166,6 +166,38 @@ fn nearest_prime(x: f64) -> usize {
         .unwrap_or(3)
 }
 
+/// A uniform point of element `k` of `mesh` (a triangle, or a quad as two triangles chosen
+/// by area): for rays leaving a surface (the escape estimate, particle checks).
+pub fn point_on_element(mesh: &mesher::ElementMesh, k: usize, rng: &mut SplitMix64) -> glam::DVec3 {
+    use glam::DVec3;
+    let el = &mesh.elements[k];
+    let c = el.corners.map(|i| mesh.vertices[i as usize]);
+    let triangle = |a: DVec3, b: DVec3, c: DVec3, rng: &mut SplitMix64| {
+        let (u, v) = (rng.next_f64(), rng.next_f64());
+        let su = u.sqrt();
+        a * (1.0 - su) + b * (su * (1.0 - v)) + c * (su * v)
+    };
+    if el.sides == 3 {
+        return triangle(c[0], c[1], c[2], rng);
+    }
+    let first = (c[1] - c[0]).cross(c[2] - c[0]).length();
+    let second = (c[2] - c[0]).cross(c[3] - c[0]).length();
+    if rng.next_f64() * (first + second) < first {
+        triangle(c[0], c[1], c[2], rng)
+    } else {
+        triangle(c[0], c[2], c[3], rng)
+    }
+}
+
+/// A direction about `normal` with density cos θ / π (Malley's method): the directions light
+/// leaves an ideal diffuse surface in.
+pub fn cosine_direction(normal: glam::DVec3, rng: &mut SplitMix64) -> glam::DVec3 {
+    let (u, v) = (rng.next_f64(), rng.next_f64());
+    let (r, phi) = (u.sqrt(), 2.0 * std::f64::consts::PI * v);
+    let (t, b) = normal.any_orthonormal_pair();
+    (t * (r * phi.cos()) + b * (r * phi.sin()) + normal * (1.0 - u).max(0.0).sqrt()).normalize()
+}
+
 #[cfg(test)]
 mod tests {
     #[test]

@@ -98,6 +98,7 @@ impl Baked<'_> {
         report.effects = bake.effects.clone();
         report.transport = bake.plan.transport().clone();
         report.energy = Some(bake.energy.clone());
+        report.escape = Some(bake.escape);
         report.accuracy = Some(bake.accuracy);
         report.refinement = Some(bake.refinement.clone());
         report.warnings = warnings.lines.clone();

@@ -51,6 +51,10 @@ pub struct Report {
     pub solver: SolverInfo,
     /// Power balance of the solution; `None` until the caller sets it.
     pub energy: Option<EnergyBalance>,
+    /// Where the escaping light goes, estimated by rays independently of the transport
+    /// (`bake_core::escape`; absent in older reports and in failed bakes').
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub escape: Option<bake_core::escape::Escape>,
     /// The effects the scene called for (absent in older reports).
     #[serde(default)]
     pub effects: Effects,
@@ -272,6 +276,7 @@ impl Report {
             peak_rss_mib: BTreeMap::new(),
             solver,
             energy: None,
+            escape: None,
             effects: Effects::default(),
             transport: TransportChoice::default(),
             lights: Vec::new(),
@@ -441,6 +446,11 @@ fn check_finite(report: &Report) -> Result<(), ExportError> {
         ];
         if let Some((name, values)) = fields.iter().find(|(_, v)| !all_finite(&v[..])) {
             return not_finite(format!("report energy {name} {values:?}"));
+        }
+    }
+    if let Some(escape) = &report.escape {
+        if !all_finite(&escape.openings) || !all_finite(&escape.back_faces) {
+            return not_finite(format!("report escape {escape:?}"));
         }
     }
     if let Some(a) = &report.accuracy {
