@@ -195,8 +195,8 @@ pub fn front_error(points: &[(f64, f64)], time: f64) -> Option<f64> {
     Some((a.1.ln() + t * (b.1.ln() - a.1.ln())).exp())
 }
 
-/// Per scene: each preset's error against the front at its time, and whether the presets are
-/// ordered. Returns (scene, preset, error, front error, ratio).
+/// Per scene and preset: (scene, preset, its error, the uniform front's error at its time;
+/// `None` when the scene has no uniform point).
 pub fn verdicts(rows: &[PresetRow]) -> Vec<(&'static str, Quality, f64, Option<f64>)> {
     let mut out = Vec::new();
     let mut scenes: Vec<&'static str> = rows.iter().map(|r| r.scene).collect();
