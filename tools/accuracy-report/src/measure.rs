@@ -392,6 +392,53 @@ pub fn element_errors(coarse: &Field, reference: &Field, scene: &Scene) -> Error
     errors.finish()
 }
 
+/// The field a viewer shows (vertex-interpolated, [`Field::smooth`]) of `shown`, sampled at the
+/// centroid of every element of the finer `reference` (≥ 32 × 32 points per face for the
+/// references used here), against the reference element's value, relative to the reference's
+/// area-weighted mean over non-emitting elements (per band): RMS weighted by the reference
+/// elements' areas, and the worst point. Unlike [`element_errors`], elements of `shown` finer
+/// than the reference's are not compared with an average they do not resolve, and dark
+/// regions count by their absolute error.
+pub fn displayed_errors(shown: &Field, reference: &Field, scene: &Scene) -> Errors {
+    let lit = |k: usize| {
+        let p = reference.mesh.elements[k].polygon as usize;
+        scene
+            .emission
+            .get(p)
+            .is_some_and(|e| e.iter().all(|&v| v == 0.0))
+    };
+    let (mut mean, mut area) = ([0.0; 3], 0.0);
+    for (k, e) in reference.mesh.elements.iter().enumerate() {
+        if lit(k) {
+            add(&mut mean, e.area, &reference.b[k]);
+            area += e.area;
+        }
+    }
+    if area <= 0.0 {
+        return Errors { max: 0.0, rms: 0.0 };
+    }
+    let mean = mean.map(|m| m / area);
+    let mut errors = Accumulator::default();
+    for (k, e) in reference.mesh.elements.iter().enumerate() {
+        if !lit(k) {
+            continue;
+        }
+        let polygon = e.polygon as usize;
+        let Some(v) = shown
+            .smooth(polygon, e.centroid)
+            .or_else(|| shown.flat(polygon, e.centroid))
+        else {
+            continue;
+        };
+        for band in 0..3 {
+            if mean[band] > 0.0 {
+                errors.add((v[band] - reference.b[k][band]).abs() / mean[band], e.area);
+            }
+        }
+    }
+    errors.finish()
+}
+
 /// Per element of `coarse`: the area average of the reference over it, as
 /// [`element_errors`] computes it (`None` where no reference element overlaps it).
 pub fn reference_means(coarse: &Field, reference: &Field, scene: &Scene) -> Vec<Option<[f64; 3]>> {

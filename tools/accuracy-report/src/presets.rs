@@ -1,5 +1,6 @@
 //! The `--quality` presets against the uniform-mesh front (issue 31), on the three scenes of
-//! the refinement sweep (`refinement.rs`: the paper's cube, the Cornell box, the sun floor).
+//! the refinement sweep (`refinement.rs`: the paper's cube, the Cornell box, the sun floor)
+//! and `small_room.obj` (from `../shared`, skipped when absent).
 //!
 //! - **Presets**: each baked exactly as `bake --quality Q IN OUT` bakes it: a default
 //!   [`bake_core::Request`] with only `quality` set (transport `auto`, refinement and element
@@ -8,10 +9,12 @@
 //!   knobs, `auto` transport) at several element sizes D.
 //!
 //! Times: the median of [`RUNS`] whole library bakes (mesh, transport, solve, refinement; no
-//! import or export). Errors as in the refinement section: cube and Cornell box, area-weighted
-//! RMS relative error of element radiosity against the exact 48 × 48-per-wall solution and a
-//! converged Cornell reference (diagonal/40, hierarchical at link tolerance 1e-3 with 121 rays);
-//! sun floor, the displayed field against its closed form. The front's error at a preset's time
+//! import or export). Errors: cube, Cornell box and small room, area-weighted RMS of
+//! the displayed (vertex-interpolated) field sampled at a finer reference's element centroids,
+//! relative to the reference's mean b (`measure::displayed_errors`), against the exact 48 ×
+//! 48-per-wall solution and converged Cornell and `small_room.obj` references (diagonal/40 and
+//! /64, hierarchical at link tolerance 1e-3 with 121 rays); sun floor, the displayed field
+//! against its closed form. The front's error at a preset's time
 //! is read off the uniform points by log–log interpolation between the two around that time
 //! (the fastest point's error before it, the slowest's after it): a preset passes when its error
 //! is at most [`SLACK`] × that, and the presets are ordered when high < normal < draft.
@@ -39,8 +42,10 @@ const EXACT: f64 = 1e-12;
 pub struct PresetRow {
     pub scene: &'static str,
     pub label: String,
-    /// The preset, or `None` for a uniform-front point.
+    /// The preset, or `None` for a uniform-front point or the previous default.
     pub preset: Option<Quality>,
+    /// Whether this is a uniform-front point.
+    pub front: bool,
     pub elements: usize,
     pub transport: String,
     pub time_s: f64,
@@ -103,7 +108,13 @@ pub fn sweep(root: &Path, out: &Path, quick: bool) -> Result<Vec<PresetRow>> {
             for q in Quality::ALL {
                 requests.push((format!("--quality {}", q.name()), Some(q), preset(q)));
             }
-            for (label, q, request) in requests {
+            let fronts = diagonals.len();
+            requests.push((
+                "previous default".into(),
+                None,
+                previous_default(&scene.polygons),
+            ));
+            for (k, (label, q, request)) in requests.into_iter().enumerate() {
                 let (bake, time_s, e) = measure(scene, &request, runs, error)?;
                 let transport = format!("{:?}", bake.plan.transport().kind).to_lowercase();
                 eprintln!(
@@ -115,6 +126,7 @@ pub fn sweep(root: &Path, out: &Path, quick: bool) -> Result<Vec<PresetRow>> {
                     scene: scene.name,
                     label,
                     preset: q,
+                    front: k < fronts,
                     elements: bake.mesh.elements.len(),
                     transport,
                     time_s,
@@ -129,12 +141,12 @@ pub fn sweep(root: &Path, out: &Path, quick: bool) -> Result<Vec<PresetRow>> {
     let reference_b = measure::closed_form_solution(&cube, &reference_mesh)?;
     let reference = Field::new(&reference_mesh, &reference_b);
     let cube_error = |b: &bake_core::Bake| {
-        measure::element_errors(&Field::new(&b.mesh, &b.solution.b), &reference, &cube).rms
+        measure::displayed_errors(&Field::new(&b.mesh, &b.solution.b), &reference, &cube).rms
     };
     let diagonals: &[f64] = if quick {
         &[8.0, 16.0]
     } else {
-        &[6.0, 8.0, 12.0, 16.0, 24.0, 32.0, 48.0]
+        &[6.0, 8.0, 12.0, 16.0, 24.0, 32.0, 48.0, 64.0]
     };
     scene_rows(&cube, diagonals, &cube_error)?;
     if quick {
@@ -143,24 +155,35 @@ pub fn sweep(root: &Path, out: &Path, quick: bool) -> Result<Vec<PresetRow>> {
 
     let cornell = Scene::load("cornell", &root.join("fixtures/cornell.gltf"))?;
     eprintln!("presets cornell: reference ...");
-    let fine = bake_core::Request {
-        subdivision: Some(Subdivision::MaxSize(mesher::max_element_size(
-            &cornell.polygons,
-            40.0,
-        ))),
-        refine: Some(false),
-        transport: bake_core::TransportKind::Hierarchical,
-        link_tolerance: Some(1e-3),
-        visibility_samples: Some(121),
-        ..bake_core::Request::default()
-    };
-    let settings = bake_core::Settings::resolve(&fine, &cornell.polygons)?;
+    let settings =
+        bake_core::Settings::resolve(&reference_request(&cornell, 40.0), &cornell.polygons)?;
     let reference_bake = bake_core::run(&cornell.source, &settings, &bake_core::Silent)?;
     let reference = Field::new(&reference_bake.mesh, &reference_bake.solution.b);
     let cornell_error = |b: &bake_core::Bake| {
-        measure::element_errors(&Field::new(&b.mesh, &b.solution.b), &reference, &cornell).rms
+        measure::displayed_errors(&Field::new(&b.mesh, &b.solution.b), &reference, &cornell).rms
     };
-    scene_rows(&cornell, &[6.0, 8.0, 12.0, 16.0, 24.0], &cornell_error)?;
+    scene_rows(
+        &cornell,
+        &[6.0, 8.0, 12.0, 16.0, 24.0, 32.0],
+        &cornell_error,
+    )?;
+
+    // small_room.obj (issue 31's repro of a small scene with occluders), when ../shared has it.
+    let path = root.join("../shared/corpus/repro/small_room.obj");
+    if path.exists() {
+        let room = Scene::load("small_room", &path)?;
+        eprintln!("presets small_room: reference ...");
+        let settings =
+            bake_core::Settings::resolve(&reference_request(&room, 64.0), &room.polygons)?;
+        let reference_bake = bake_core::run(&room.source, &settings, &bake_core::Silent)?;
+        let reference = Field::new(&reference_bake.mesh, &reference_bake.solution.b);
+        let room_error = |b: &bake_core::Bake| {
+            measure::displayed_errors(&Field::new(&b.mesh, &b.solution.b), &reference, &room).rms
+        };
+        scene_rows(&room, &[8.0, 12.0, 16.0, 24.0, 32.0], &room_error)?;
+    } else {
+        eprintln!("presets small_room: skipped ({} not found)", path.display());
+    }
 
     let path = refinement::write_floor(out)?;
     let floor = Scene::load("sun floor", &path)?;
@@ -169,8 +192,42 @@ pub fn sweep(root: &Path, out: &Path, quick: bool) -> Result<Vec<PresetRow>> {
     Ok(rows)
 }
 
+/// The default bake before issue 31's plan (commit c40dda1): `--max-error` 1e-3 with
+/// refinement on the estimate up to 2 000 elements (dense) or 4 000 (a small scene with
+/// occluders, hierarchical at link tolerance 0.01), from the grid of diagonal / 16.
+fn previous_default(polygons: &[importer::Polygon]) -> bake_core::Request {
+    bake_core::Request {
+        subdivision: Some(Subdivision::MaxSize(mesher::max_element_size(
+            polygons, 16.0,
+        ))),
+        max_error: Some(1e-3),
+        link_tolerance: Some(0.01),
+        refine: Some(true),
+        ..bake_core::Request::default()
+    }
+}
+
+/// A converged reference of a scene with occluders: elements of diagonal / `per_diagonal`, not
+/// refined, hierarchical at link tolerance 1e-3 with 121 rays per link.
+fn reference_request(scene: &Scene, per_diagonal: f64) -> bake_core::Request {
+    bake_core::Request {
+        subdivision: Some(Subdivision::MaxSize(mesher::max_element_size(
+            &scene.polygons,
+            per_diagonal,
+        ))),
+        refine: Some(false),
+        transport: bake_core::TransportKind::Hierarchical,
+        link_tolerance: Some(1e-3),
+        visibility_samples: Some(121),
+        ..bake_core::Request::default()
+    }
+}
+
 /// The uniform front's error at `time`: log–log interpolation between the uniform points
-/// around it (sorted by time, each the best error so far), flat beyond the ends.
+/// around it (sorted by time, each the best error so far); before the fastest point, the first
+/// segment's log–log line continued (a preset faster than every uniform bake is held to the
+/// front's own trend, not to a slower bake's error); flat after the slowest (a preset slower
+/// than every uniform bake is held to the best of them).
 pub fn front_error(points: &[(f64, f64)], time: f64) -> Option<f64> {
     let mut front: Vec<(f64, f64)> = points.to_vec();
     front.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -184,7 +241,13 @@ pub fn front_error(points: &[(f64, f64)], time: f64) -> Option<f64> {
     let first = *kept.first()?;
     let last = *kept.last()?;
     if time <= first.0 {
-        return Some(first.1);
+        return Some(match kept.get(1) {
+            Some(&second) => {
+                let slope = (second.1.ln() - first.1.ln()) / (second.0.ln() - first.0.ln());
+                (first.1.ln() + slope * (time.ln() - first.0.ln())).exp()
+            }
+            None => first.1,
+        });
     }
     if time >= last.0 {
         return Some(last.1);
@@ -204,7 +267,7 @@ pub fn verdicts(rows: &[PresetRow]) -> Vec<(&'static str, Quality, f64, Option<f
     for scene in scenes {
         let points: Vec<(f64, f64)> = rows
             .iter()
-            .filter(|r| r.scene == scene && r.preset.is_none())
+            .filter(|r| r.scene == scene && r.front)
             .map(|r| (r.time_s, r.error))
             .collect();
         for r in rows.iter().filter(|r| r.scene == scene) {
@@ -224,12 +287,18 @@ pub fn markdown(rows: &[PresetRow]) -> String {
         "{BEGIN}\n## The presets against the uniform-mesh front (issue 31)\n\n\
          Each `--quality` preset baked as `bake --quality Q` bakes it (everything else default), \
          against uniform meshes (`--max-element-size D --refine off`, the default preset's \
-         other knobs). Median of {RUNS} library bakes (mesh, transport, solve, refinement; no \
-         import/export), 2 cores. Errors as in the refinement section below, but the cube \
-         against the exact 48 × 48-per-wall solution and the Cornell box against diagonal/40 \
-         (hierarchical, link tolerance 1e-3, 121 rays). *Front*: the uniform points' error at \
-         the preset's time, interpolated log–log. Regenerate with `cargo run --release -p \
-         bake-accuracy-report -- --presets` (this section only).\n"
+         other knobs), and the default bake before issue 31's plan (*previous default*: \
+         `--max-error 1e-3 --link-tolerance 0.01 --refine on` from diagonal/16). Median of \
+         {RUNS} library bakes (mesh, transport, solve, refinement; no import/export), 2 cores. \
+         *RMS error*: the field a viewer shows (vertex-interpolated) at the centroid of every \
+         element of a finer reference, against the reference's value, over the reference's \
+         mean b (area-weighted over non-emitting elements; `measure::displayed_errors`): the \
+         cube against its exact 48 × 48-per-wall solution, the Cornell box and \
+         `small_room.obj` against converged bakes (diagonal/40 and /64, hierarchical, link \
+         tolerance 1e-3, 121 rays, not refined); the sun floor against its closed form. \
+         *Front*: the uniform points' error at the preset's time, interpolated log–log (along \
+         the first segment before the fastest point, flat after the slowest). Regenerate with \
+         `cargo run --release -p bake-accuracy-report -- --presets` (this section only).\n"
     );
     let mut scenes: Vec<&'static str> = rows.iter().map(|r| r.scene).collect();
     scenes.dedup();
@@ -291,12 +360,15 @@ pub const END: &str = "<!-- /presets -->";
 mod tests {
     use super::*;
 
-    /// The front is read between its points on log–log axes, flat beyond them, and points
-    /// that do not improve on a faster one are not on it.
+    /// The front is read between its points on log–log axes, continued before the fastest
+    /// along its first segment, flat after the slowest, and points that do not improve on a
+    /// faster one are not on it.
     #[test]
     fn the_front_interpolates_log_log() {
         let points = [(0.1, 1e-2), (1.0, 1e-3), (0.5, 5e-2), (10.0, 1e-4)];
-        assert_eq!(front_error(&points, 0.01), Some(1e-2));
+        let before = front_error(&points, 0.01).unwrap();
+        assert!((before / 1e-1 - 1.0).abs() < 1e-12, "{before}");
+        assert_eq!(front_error(&[(0.1, 1e-2)], 0.01), Some(1e-2));
         assert_eq!(front_error(&points, 100.0), Some(1e-4));
         let mid = front_error(&points, 0.1f64.sqrt()).unwrap();
         assert!(
