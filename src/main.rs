@@ -44,8 +44,8 @@ pub struct Cli {
     /// The accuracy–time trade in one knob.
     ///
     /// Sets the element size, target error (--max-error), form-factor estimator, and shadow
-    /// rays, as measured in docs/accuracy.md. `draft`: elements of diagonal/8, --max-error 1e-2,
-    /// 49 rays; `normal`: diagonal/16, 1e-3, 121 rays; `high`: diagonal/32, 1e-4, 961 rays.
+    /// rays, as measured in docs/accuracy.md. `draft`: elements of diagonal/8, --max-error 3e-2,
+    /// 49 rays; `normal`: diagonal/16, 1e-2, 121 rays; `high`: diagonal/32, 3e-3, 961 rays.
     /// Options given explicitly override the preset.
     #[arg(long, value_enum, default_value_t = Quality::Normal, help_heading = "Accuracy")]
     pub quality: Quality,
@@ -53,9 +53,12 @@ pub struct Cli {
     ///
     /// The dense transport's per-pair form-factor tolerance is derived from it and the scene's
     /// largest reflectance ρ, through the bound cond∞ ≤ (1 + ρ(1 + τ))/(1 − ρ(1 + τ)) (bright
-    /// rooms get tighter form factors, e.g. 5e-7 per pair for ρ = 0.999 at 1e-3). It bounds what
-    /// form-factor integration can add, not the element size's discretisation error (see the
-    /// report's `error`). [default: from --quality: 1e-2 draft, 1e-3 normal, 1e-4 high]
+    /// rooms get tighter form factors, e.g. 5e-7 per pair for ρ = 0.999 at 1e-3). The
+    /// hierarchical transport's link tolerance is derived from it and the amplification its
+    /// coarse solves measure (ε = E × mean b / (mean b / mean emission)), and its GMRES
+    /// tolerance is E / 100 (at most 1e-6). It bounds what the transport can add, not the element size's
+    /// discretisation error (see the report's `error`). [default: from --quality: 3e-2 draft,
+    /// 1e-2 normal, 3e-3 high]
     #[arg(long, value_name = "E", value_parser = parse_tolerance, help_heading = "Accuracy")]
     pub max_error: Option<f64>,
     /// No element edge longer than L (world units).
@@ -85,9 +88,9 @@ pub struct Cli {
     pub refine: Option<OnOff>,
     /// The element budget of refinement.
     ///
-    /// [default: 2000, the dense crossover; 4000 on a small scene with occluders, which `auto`
-    /// gives the hierarchical transport; else on the hierarchical transport the grid's
-    /// elements plus a quarter where that is more]
+    /// [default: 2000, the dense crossover; on a scene of up to 4000 elements that `auto` gives
+    /// the hierarchical transport, twice the grid's elements and at least 4000; else on the
+    /// hierarchical transport the grid's elements plus a quarter where that is more]
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..),
           help_heading = "Accuracy")]
     pub max_elements: Option<u64>,
@@ -105,8 +108,8 @@ pub struct Cli {
     /// Hierarchical transport: largest error of one link, relative to the mean radiosity.
     ///
     /// The largest estimated error of one link's contribution to the radiosity of its
-    /// receiver, relative to the scene's mean radiosity [default: from --quality: 0.05 draft,
-    /// 0.01 normal, 0.002 high].
+    /// receiver, relative to the scene's mean radiosity [default: derived from --max-error:
+    /// E over the amplification the linking passes' coarse solves measure].
     #[arg(long, value_name = "T", value_parser = parse_positive, help_heading = "Accuracy")]
     pub link_tolerance: Option<f64>,
 
@@ -218,11 +221,12 @@ pub struct Cli {
     /// `dense`: every element pair's form factor in an n × n matrix (exact; time and memory
     /// grow with n²). `hierarchical`: hierarchical radiosity (Hanrahan, Salzman & Aupperle
     /// 1991): each polygon is a tree over its elements and light moves along links between the
-    /// coarsest node pairs whose estimated error is below --link-tolerance (links grow about
+    /// coarsest node pairs whose estimated error is below the link tolerance --max-error
+    /// derives (or --link-tolerance; links grow about
     /// linearly with n). `auto`: dense up to the measured crossover, hierarchical above it and
-    /// on small scenes where some polygon can come between others (refined by default, up to
-    /// 4000 elements: more accurate than dense at 2000, in a tenth of the time); the report
-    /// says which and why.
+    /// on small scenes where some polygon can come between others (scenes up to 4000 elements
+    /// are refined by default, to twice their grid and at least 4000 elements: more accurate
+    /// than dense at 2000, in a tenth of the time); the report says which and why.
     #[arg(long, value_enum, default_value_t = TransportKind::Auto, help_heading = "Expert")]
     pub transport: TransportKind,
     /// How to solve (I − ρF) b = e exactly: LU or GMRES.

@@ -80,7 +80,7 @@ fn furnace_error(report: &Report, rho: f32) -> f64 {
 fn bright_closed_boxes_bake_within_the_target() {
     let mut table = Vec::new();
     for rho in [0.999f32, 0.9999f32] {
-        for (quality, max_error, within) in [("normal", 1e-3, 1e-4), ("high", 1e-4, 1e-6)] {
+        for (quality, max_error, within) in [("normal", 1e-2, 1e-3), ("high", 3e-3, 3e-4)] {
             let dir = tempfile::tempdir().expect("tempdir");
             let (out, report) = run(dir.path(), &box_gltf(Some(rho)), &["--quality", quality]);
             let report = report.unwrap_or_else(|| panic!("ρ = {rho} {quality}: {out:#?}"));
@@ -165,7 +165,7 @@ fn a_bright_cube_at_high_quality_stays_dense_and_within_the_target() {
         report
             .warnings
             .iter()
-            .any(|w| w.contains("amplify errors") && w.contains("--link-tolerance")),
+            .any(|w| w.contains("amplify errors") && w.contains("--max-error")),
         "{:?}",
         report.warnings
     );
@@ -173,7 +173,7 @@ fn a_bright_cube_at_high_quality_stays_dense_and_within_the_target() {
 
 #[test]
 fn the_tolerance_tightens_with_the_reflectance() {
-    // The per-pair tolerance the default target (1e-3) chooses, as a table, and the bound it
+    // The per-pair tolerance the default target (1e-2) chooses, as a table, and the bound it
     // leaves after the solve on the same box at --subdiv 2 (cheap: 24 elements).
     let mut previous = f64::INFINITY;
     for rho in [0.5f32, 0.9, 0.99, 0.999, 0.9999] {
@@ -191,8 +191,8 @@ fn the_tolerance_tightens_with_the_reflectance() {
         );
         assert!(tau < previous, "{tau} after {previous}");
         previous = tau;
-        assert!(after <= 1e-3 * (1.0 + 1e-9), "{after}");
-        assert!(error <= 1e-3, "ρ = {rho}: {error:e}");
+        assert!(after <= 1e-2 * (1.0 + 1e-9), "{after}");
+        assert!(error <= 1e-2, "ρ = {rho}: {error:e}");
     }
 }
 

@@ -33,9 +33,9 @@ fn presets_set_their_knobs_and_order_the_work() {
     let mut last_evaluations = 0;
     let mut last_elements = 0;
     for (quality, elements_per_wall, max_error, samples) in [
-        ("draft", 5, 1e-2, 49),
-        ("normal", 10, 1e-3, 121),
-        ("high", 19, 1e-4, 961),
+        ("draft", 5, 3e-2, 49),
+        ("normal", 10, 1e-2, 121),
+        ("high", 19, 3e-3, 961),
     ] {
         let r = bake_cube(&["--quality", quality]);
         let o = &r.options;
@@ -50,8 +50,8 @@ fn presets_set_their_knobs_and_order_the_work() {
         // The cube needs no shadow rays at any quality.
         assert_eq!(r.counts.rays_cast, 0);
         if r.transport.kind.name() == "dense" {
-            // The dense transport's tolerance comes from the target and ρ_max (1.9e-3 for
-            // draft, 1.9e-4 for normal).
+            // The dense transport's tolerance comes from the target and ρ_max (about 5.6e-3
+            // for draft, 1.9e-3 for normal).
             let tau = bake_core::accuracy::pair_tolerance(max_error, 0.75);
             assert_eq!(o["ff_tolerance"], tau);
             assert_eq!(o["ff_tolerance_from_max_error"], true);
@@ -59,11 +59,20 @@ fn presets_set_their_knobs_and_order_the_work() {
             assert!(r.counts.kernel_evaluations > last_evaluations, "{quality}");
         } else {
             // `high` puts 2 166 elements on the cube, above the crossover: linear links need
-            // fewer kernel evaluations than `normal`'s every pair, but at the tightest link
-            // tolerance.
+            // fewer kernel evaluations than `normal`'s every pair. Their tolerance comes from
+            // the target: ε = E B̄ / a, a = B̄ / Ē the amplification the last linking pass
+            // measured (about 1 / (1 − ρ̄) in the closed cube: 2.16), so the relative link
+            // tolerance times a gives E back.
             assert_eq!(quality, "high");
             assert_eq!(r.transport.kind.name(), "hierarchical");
-            assert_eq!(o["link_tolerance"], 0.002);
+            assert_eq!(o["link_tolerance"], serde_json::Value::Null);
+            assert_eq!(o["link_tolerance_from_max_error"], true);
+            let (t, a) = (
+                accuracy.link_tolerance.expect("a link tolerance"),
+                accuracy.amplification.expect("an amplification"),
+            );
+            assert!((2.0..2.4).contains(&a), "amplification {a}");
+            assert!((t * a / max_error - 1.0).abs() < 1e-9, "{t} × {a}");
             // The hierarchy's links keep the preset's per-pair tolerance.
             assert_eq!(o["ff_tolerance"], 1e-4);
             assert_eq!(o["ff_tolerance_from_max_error"], false);
@@ -121,6 +130,22 @@ fn explicit_options_override_the_preset() {
     let r = bake_cube(&["--ff-estimator", "point-polygon", "--ff-points", "7"]);
     assert_eq!(r.options["ff_points"], 7);
     assert_eq!(r.counts.pairs_point_polygon, r.counts.pairs_evaluated);
+
+    // --link-tolerance overrides the link tolerance --max-error derives.
+    let r = bake_cube(&[
+        "--transport",
+        "hierarchical",
+        "--link-tolerance",
+        "0.02",
+        "--subdiv",
+        "4",
+    ]);
+    assert_eq!(r.options["link_tolerance"], 0.02);
+    assert_eq!(r.options["link_tolerance_from_max_error"], false);
+    assert_eq!(
+        r.accuracy.as_ref().and_then(|a| a.link_tolerance),
+        Some(0.02)
+    );
 }
 
 /// The default bake is `--quality normal`, and `auto` keeps the cube within its tolerance of

@@ -62,6 +62,13 @@ pub struct Accuracy {
     /// The per-pair tolerance the target chose for `auto` (`None` when an explicit estimator
     /// or `--ff-tolerance` decided it, or the transport was not the dense one).
     pub ff_tolerance: Option<f64>,
+    /// Hierarchical transport: the link tolerance (ε over the mean radiosity) its last linking
+    /// pass ran with, derived from `max_error` unless `--link-tolerance` set it, and the
+    /// amplification `B̄ / Ē` that pass's coarse solve measured (absent on other transports).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub link_tolerance: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub amplification: Option<f64>,
     /// The row-sum accuracy the solver was told (what the estimator states).
     pub row_sum_accuracy: f64,
     /// [`condition_bound`] for ρ_max and that accuracy (`None`: unbounded, ρ_max = 1).

@@ -24,8 +24,8 @@ mod settings;
 mod transports;
 
 pub use settings::{
-    EstimatorKind, Request, Settings, Solve, SolverKind, TransportKind, DEFAULT_MAX_REFLECTANCE,
-    HIERARCHICAL_SOLVE_TOLERANCE,
+    hierarchical_solve_tolerance, EstimatorKind, Request, Settings, Solve, SolverKind,
+    TransportKind, DEFAULT_MAX_REFLECTANCE, HIERARCHICAL_SOLVE_LOOSEST, HIERARCHICAL_SOLVE_SHARE,
 };
 
 pub use accuracy::Accuracy;
@@ -264,11 +264,21 @@ pub const MAX_BOUNCES: u32 = 10_000;
 /// than the hierarchy's per link: [`OCCLUDED_MAX_ELEMENTS`]).
 pub const DENSE_CROSSOVER: usize = 2_000;
 
-/// The default `--max-elements` of a small scene with occlusion, which `auto` gives the
-/// hierarchical transport, refined: measured (docs/accuracy.md, issue 31) on
-/// `small_room.obj` and the Cornell box, the hierarchy refined to 4 000 elements is more
-/// accurate than the dense transport refined to 2 000, in a tenth of the time.
+/// The least default `--max-elements` of a small scene on the hierarchical transport under
+/// `auto` (one with occlusion up to the crossover, any scene up to [`SMALL_SCENE_ELEMENTS`]),
+/// which is refined by default: measured (docs/accuracy.md, issue 31) on `small_room.obj` and
+/// the Cornell box, the hierarchy refined to 4 000 elements is more accurate than the dense
+/// transport refined to 2 000, in a tenth of the time, and than a uniform grid of as many
+/// elements.
 pub const OCCLUDED_MAX_ELEMENTS: u64 = 4_000;
+
+/// Scenes of up to this many elements on the hierarchical transport under `auto` are refined
+/// by default (up to twice their grid's elements, at least [`OCCLUDED_MAX_ELEMENTS`]; at most
+/// [`refine::MAX_HIERARCHICAL_PASSES`] solves): each pass links the scene again, which a small
+/// scene affords and a walkthrough does not. Measured on the paper's cube at `--quality high`
+/// (2 166 elements) and the Cornell box (3 409): refined, they are more accurate than uniform
+/// grids at the same time (issue 31, docs/accuracy.md).
+pub const SMALL_SCENE_ELEMENTS: usize = 4_000;
 
 /// The default `--max-elements` of a dense bake (the dense crossover: a small scene refines up
 /// to what the dense transport takes), and the least of a hierarchical one.
@@ -595,6 +605,8 @@ fn accuracy_of(plan: &Plan, rho_max: f64, done: &transports::Transported) -> Acc
         max_error: settings.max_error,
         rho_max,
         ff_tolerance,
+        link_tolerance: done.link_tolerance.map(|(t, _)| t),
+        amplification: done.link_tolerance.map(|(_, a)| a),
         row_sum_accuracy,
         condition_bound: Some(accuracy::condition_bound(rho_max, row_sum_accuracy))
             .filter(|c| c.is_finite()),
@@ -725,7 +737,13 @@ pub fn links_key(scene: &Scene, mesh: &ElementMesh, settings: &Settings) -> u64 
     eat(&c.order.to_le_bytes());
     eat(&c.near_ratio.to_bits().to_le_bytes());
     eat(&[u8::from(c.auto_order)]);
-    eat(&settings.link_tolerance.to_bits().to_le_bytes());
+    match settings.link_tolerance {
+        Some(t) => eat(&t.to_bits().to_le_bytes()),
+        None => {
+            eat(b"E");
+            eat(&settings.max_error.to_bits().to_le_bytes());
+        }
+    }
     eat(&settings.link_samples.to_le_bytes());
     eat(&LINK_PASSES.to_le_bytes());
     hash

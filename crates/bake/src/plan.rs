@@ -9,9 +9,10 @@
 use crate::{
     accuracy, check_memory, BakeError, Settings, Solve, TransportChoice, TransportKind,
     BRIGHT_AMPLIFICATION, BRIGHT_DENSE_MAX, DENSE_CROSSOVER, LINK_PASSES, OCCLUDED_MAX_ELEMENTS,
-    ROW_SUM_WARNING_MARGIN,
+    ROW_SUM_WARNING_MARGIN, SMALL_SCENE_ELEMENTS,
 };
 use form_factor::Estimator;
+
 use transport::{DenseOptions, HierarchicalOptions};
 
 /// What a plan needs to know of the scene before meshing: sizes and the reflectance bound.
@@ -36,9 +37,12 @@ pub struct Plan {
     transport: TransportChoice,
     solve: Solve,
     estimator: Estimator,
-    /// The hierarchy chosen for a small scene with occlusion: refined by default, up to
-    /// [`OCCLUDED_MAX_ELEMENTS`].
+    /// The hierarchy chosen for a small scene with occlusion (then a dense bake is the
+    /// fallback when it has no solution).
     small_occluded: bool,
+    /// The hierarchy `auto` chose for a scene of at most [`SMALL_SCENE_ELEMENTS`]: refined by
+    /// default, up to twice its grid's elements and at least [`OCCLUDED_MAX_ELEMENTS`].
+    small: bool,
 }
 
 impl Plan {
@@ -57,14 +61,18 @@ impl Plan {
             && settings.transport == TransportKind::Auto
             && scene.occluded
             && n <= DENSE_CROSSOVER;
-        let amplification = accuracy::condition_bound(rho_bound, 0.0);
-        if transport.kind == TransportKind::Hierarchical && amplification >= BRIGHT_AMPLIFICATION {
+        let small = transport.kind == TransportKind::Hierarchical
+            && settings.transport == TransportKind::Auto
+            && n <= SMALL_SCENE_ELEMENTS;
+        let risk = LinkRisk::of(settings, rho_bound);
+        if transport.kind == TransportKind::Hierarchical && risk.bright {
             warnings.push(format!(
-                "reflectances up to {rho_bound} amplify errors up to {amplification:.0}x: the \
-                 hierarchical transport's link tolerance {} may leave b far from --max-error \
-                 {:e} (a smaller --link-tolerance, or --transport dense where memory allows, \
-                 tightens it)",
-                settings.link_tolerance, settings.max_error
+                "reflectances up to {rho_bound} amplify errors up to {:.0}x: the hierarchical \
+                 transport's link tolerance ({}) may leave b far from --max-error {:e} (a \
+                 smaller --max-error, or --transport dense where memory allows, tightens it)",
+                risk.amplification,
+                risk.describe(),
+                settings.max_error
             ));
         }
         let solve = settings.solve(transport.kind);
@@ -75,6 +83,7 @@ impl Plan {
             solve,
             estimator: settings.estimator,
             small_occluded,
+            small,
         })
     }
 
@@ -103,10 +112,10 @@ impl Plan {
     }
 
     /// Whether refinement runs without being asked for: always on the dense transport, and on
-    /// the hierarchy that `auto` chose for a small scene with occlusion (else each refining
-    /// solve of a large scene would link it again).
+    /// the hierarchy that `auto` chose for a scene of at most [`SMALL_SCENE_ELEMENTS`] (else
+    /// each refining solve of a large scene would link it again).
     pub fn refines_by_default(&self) -> bool {
-        self.transport.kind != TransportKind::Hierarchical || self.small_occluded
+        self.transport.kind != TransportKind::Hierarchical || self.small
     }
 
     /// Whether this is the hierarchy `auto` chose for a small scene with occluders.
@@ -115,11 +124,11 @@ impl Plan {
     }
 
     /// Refinement's element budget from a bake of `grid` elements: `--max-elements`, else
-    /// [`OCCLUDED_MAX_ELEMENTS`] for a small scene with occlusion on the hierarchy, else
-    /// [`Settings::element_budget`]'s default.
+    /// twice the grid and at least [`OCCLUDED_MAX_ELEMENTS`] for a small scene on the hierarchy
+    /// (`auto`), else [`Settings::element_budget`]'s default.
     pub fn element_budget(&self, grid: usize) -> u64 {
         match self.settings.max_elements {
-            None if self.small_occluded => OCCLUDED_MAX_ELEMENTS,
+            None if self.small => OCCLUDED_MAX_ELEMENTS.max(2 * grid as u64),
             _ => self
                 .settings
                 .element_budget(grid, self.transport.kind == TransportKind::Hierarchical),
@@ -163,7 +172,7 @@ impl Plan {
     /// The hierarchical transport's build options, keeping at most `max_links` links.
     pub(crate) fn hierarchical_options(&self, max_links: u64) -> HierarchicalOptions {
         HierarchicalOptions {
-            link_tolerance: self.settings.link_tolerance,
+            link_tolerance: self.settings.link_tolerance(),
             samples: self.settings.link_samples,
             estimator: self.settings.estimator,
             contour: self.settings.contour,
@@ -180,6 +189,56 @@ impl Plan {
     }
 }
 
+/// What the hierarchy's links could cost b, a priori: their tolerance amplified by the
+/// condition bound, against the target.
+struct LinkRisk {
+    /// [`accuracy::condition_bound`] of the reflectance bound.
+    amplification: f64,
+    /// The error of b one link's tolerance could become.
+    amplified: f64,
+    /// Whether that passes `--max-error` on a scene bright enough to matter
+    /// ([`BRIGHT_AMPLIFICATION`]).
+    bright: bool,
+    /// `--link-tolerance`, when given.
+    explicit: Option<f64>,
+}
+
+impl LinkRisk {
+    fn of(settings: &Settings, rho_bound: f64) -> LinkRisk {
+        let amplification = accuracy::condition_bound(rho_bound, 0.0);
+        let amplified = match settings.link_tolerance {
+            Some(t) => amplification * rho_bound * t,
+            // ε = E B̄ / a with the measured amplification a ≈ 1 / (1 − ρ) of a grey scene,
+            // at most MAX_AMPLIFICATION (transport::LinkTolerance::FromMaxError).
+            None => {
+                let measured = (1.0 / (1.0 - rho_bound)).clamp(1.0, transport::MAX_AMPLIFICATION);
+                let measured = if measured.is_finite() {
+                    measured
+                } else {
+                    transport::MAX_AMPLIFICATION
+                };
+                amplification * rho_bound * settings.max_error / measured
+            }
+        };
+        LinkRisk {
+            amplification,
+            amplified,
+            bright: amplification >= BRIGHT_AMPLIFICATION && amplified > settings.max_error,
+            explicit: settings.link_tolerance,
+        }
+    }
+
+    fn describe(&self) -> String {
+        match self.explicit {
+            Some(t) => format!("--link-tolerance {t}"),
+            None => format!(
+                "from --max-error, with amplification at most {}",
+                transport::MAX_AMPLIFICATION
+            ),
+        }
+    }
+}
+
 /// Which transport `settings` asks for on a scene of `n` elements whose reflectances are at
 /// most `rho_bound` (`occluded`: some polygon can come between two others), and why.
 fn choose_transport(
@@ -188,11 +247,8 @@ fn choose_transport(
     rho_bound: f64,
     occluded: bool,
 ) -> TransportChoice {
-    // What the hierarchy's links could cost b: their tolerance amplified by the a-priori
-    // condition bound, against the target.
-    let amplification = accuracy::condition_bound(rho_bound, 0.0);
-    let amplified = amplification * rho_bound * settings.link_tolerance;
-    let bright = amplification >= BRIGHT_AMPLIFICATION && amplified > settings.max_error;
+    let risk = LinkRisk::of(settings, rho_bound);
+    let (amplification, amplified, bright) = (risk.amplification, risk.amplified, risk.bright);
     if let Some(path) = &settings.load_links {
         return TransportChoice {
             kind: TransportKind::Hierarchical,
@@ -222,9 +278,11 @@ fn choose_transport(
                 reason: format!(
                     "{n} elements, more than the crossover of {DENSE_CROSSOVER}, but reflectances \
                      up to {rho_bound} amplify errors up to {:.0}×: the hierarchy's link \
-                     tolerance {} could cost b {amplified:.1e}, more than --max-error {:e}; the \
-                     dense transport meets it (up to {BRIGHT_DENSE_MAX} elements)",
-                    amplification, settings.link_tolerance, settings.max_error
+                     tolerance ({}) could cost b {amplified:.1e}, more than --max-error {:e}; \
+                     the dense transport meets it (up to {BRIGHT_DENSE_MAX} elements)",
+                    amplification,
+                    risk.describe(),
+                    settings.max_error
                 ),
             }
         }
@@ -233,8 +291,7 @@ fn choose_transport(
             reason: format!(
                 "{n} elements, at most the crossover of {DENSE_CROSSOVER}, but some polygon can \
                  come between others: the dense transport would cast shadow rays for every \
-                 element pair that may be hidden, the hierarchy only per link; refined up to \
-                 {OCCLUDED_MAX_ELEMENTS} elements"
+                 element pair that may be hidden, the hierarchy only per link"
             ),
         },
         TransportKind::Auto if n <= DENSE_CROSSOVER => TransportChoice {

@@ -1,8 +1,9 @@
 //! `--quality draft|normal|high`: one knob for the accuracy–time trade. Each preset fixes the
 //! element size (relative to the scene), the form-factor estimator and its tolerance (the
 //! hierarchical transport's; the dense transport derives its own from `max_error`), the
-//! target relative error of `b`, and the shadow rays per occludable pair; explicit options
-//! override it. The values were chosen from the Pareto front measured by
+//! target relative error of `b` (from which the dense transport's per-pair tolerance, the
+//! hierarchical transport's link tolerance and its solve's tolerance are derived), and the
+//! shadow rays per occludable pair; explicit options override it. The values were chosen from the Pareto front measured by
 //! `tools/accuracy-report` on the paper's cube and the Cornell box; `docs/accuracy.md` lists
 //! each preset's error and time there.
 
@@ -33,29 +34,32 @@ impl Quality {
     pub fn preset(self) -> Preset {
         match self {
             Quality::Draft => Preset {
-                max_error: 1e-2,
+                max_error: 3e-2,
+                refine_target: 1e-2,
+                refine_smooth: false,
                 elements_per_diagonal: 8.0,
                 estimator: Estimator::Auto { tolerance: 1e-2 },
                 visibility_samples: 49,
-                link_tolerance: 0.05,
                 link_samples: 9,
                 light_samples: 4,
             },
             Quality::Normal => Preset {
-                max_error: 1e-3,
+                max_error: 1e-2,
+                refine_target: 1e-3,
+                refine_smooth: true,
                 elements_per_diagonal: 16.0,
                 estimator: Estimator::Auto { tolerance: 1e-3 },
                 visibility_samples: 121,
-                link_tolerance: 0.01,
                 link_samples: 25,
                 light_samples: 16,
             },
             Quality::High => Preset {
-                max_error: 1e-4,
+                max_error: 3e-3,
+                refine_target: 1e-4,
+                refine_smooth: true,
                 elements_per_diagonal: 32.0,
                 estimator: Estimator::Auto { tolerance: 1e-4 },
                 visibility_samples: 961,
-                link_tolerance: 0.002,
                 link_samples: 49,
                 light_samples: 64,
             },
@@ -70,15 +74,26 @@ pub struct Preset {
     /// for `auto` is derived from it and the scene's largest reflectance
     /// ([`crate::accuracy::pair_tolerance`]).
     pub max_error: f64,
+    /// What refinement splits for: an element whose discretisation estimate passes this times
+    /// the mean radiosity (`--max-error` sets both). A tenth of `max_error` or less: the
+    /// estimate (b against the plane through its neighbours) runs well below the error the
+    /// displayed field has, and refining to it was measured to beat a uniformly finer grid at
+    /// equal time on the cube, the Cornell box and `small_room.obj` (issue 31,
+    /// docs/accuracy.md); these are the values the presets refined to before the transport's
+    /// tolerances were derived from `max_error`.
+    pub refine_target: f64,
+    /// Whether refinement splits for the discretisation estimate too, or only where a light's
+    /// shadow edge crosses an element (`--refine on`, `--max-error` or `--max-elements` ask for
+    /// both). `draft` is one solve on its grid plus shadow edges: on the paper's cube its
+    /// dense refinement 150 → 459 elements cost 13× the time for less than a uniform grid of
+    /// as many elements gives (issue 31, docs/accuracy.md).
+    pub refine_smooth: bool,
     /// Elements no longer than the scene's bounding-box diagonal divided by this.
     pub elements_per_diagonal: f64,
     /// Form-factor estimator (and its tolerance).
     pub estimator: Estimator,
     /// Shadow rays per element pair that a polygon may come between.
     pub visibility_samples: u32,
-    /// Hierarchical transport: the largest estimated error of one link's contribution to its
-    /// receiver, relative to the scene's mean radiosity (`--link-tolerance`).
-    pub link_tolerance: f64,
     /// Hierarchical transport: shadow rays per link that a polygon may come between.
     pub link_samples: u32,
     /// Shadow rays per element a polygon may shadow from a point or spot light.
@@ -107,10 +122,12 @@ mod tests {
         for pair in Quality::ALL.windows(2) {
             let (a, b) = (pair[0].preset(), pair[1].preset());
             assert!(a.max_error > b.max_error);
+            assert!(a.refine_target > b.refine_target);
+            assert!(a.refine_smooth <= b.refine_smooth);
+            assert!(b.refine_target <= b.max_error / 5.0);
             assert!(a.elements_per_diagonal < b.elements_per_diagonal);
             assert!(tolerance(a) > tolerance(b));
             assert!(a.visibility_samples < b.visibility_samples);
-            assert!(a.link_tolerance > b.link_tolerance);
             assert!(a.link_samples < b.link_samples);
             assert!(a.light_samples < b.light_samples);
         }

@@ -9,7 +9,10 @@
 //!   neighbours) exceeds the target, with neighbours taken on its own side of every shadow
 //!   edge only (a step is not a gradient a finer mesh would follow),
 //!
-//! where the target is `--max-error` times the area-weighted mean of `b`'s brightest band.
+//! where the target is `--max-error` (the preset's refinement target when it is not given:
+//! [`crate::presets::Preset::refine_target`]) times the area-weighted mean of `b`'s brightest
+//! band. The second kind only with [`crate::presets::Preset::refine_smooth`] (not `draft`'s,
+//! unless a target was asked for).
 //! Marked elements are split (quads 2 × 2, triangles into 4, [`mesher::ElementMesh::refine`]),
 //! worst first within the element budget (`--max-elements`), at most [`MAX_LEVELS`] times
 //! below the grid, and the scene is solved again on the new mesh (either transport: the
@@ -68,9 +71,13 @@ struct Marks {
     wanted: Vec<usize>,
     /// Elements above the target at the finest level (shadow-edge elements excluded).
     at_finest: usize,
+    /// Elements above the target off shadow edges, left as they are without
+    /// [`Settings::refine_smooth`].
+    smooth: usize,
 }
 
-/// The target of one bake: `--max-error` × the area-weighted mean of the brightest band of b.
+/// The target of one bake: `--max-error` (or the preset's refinement target) × the
+/// area-weighted mean of the brightest band of b.
 fn target(bake: &Bake, settings: &Settings) -> f64 {
     let (mut sum, mut area) = (0.0, 0.0);
     for (e, b) in bake.mesh.elements.iter().zip(&bake.solution.b) {
@@ -78,7 +85,7 @@ fn target(bake: &Bake, settings: &Settings) -> f64 {
         area += e.area;
     }
     if area > 0.0 {
-        settings.max_error * sum / area
+        settings.refine_target * sum / area
     } else {
         0.0
     }
@@ -114,8 +121,13 @@ fn marks(bake: &Bake, settings: &Settings) -> Marks {
         .collect();
     let mut wanted = Vec::new();
     let mut at_finest = 0;
+    let mut smooth = 0;
     for (i, &p) in priority.iter().enumerate() {
         if p.is_nan() || p <= 1.0 {
+            continue;
+        }
+        if !settings.refine_smooth && bake.partly_lit.get(i) != Some(&true) {
+            smooth += 1;
             continue;
         }
         if mesh.level(i) < settings.refine_levels {
@@ -130,6 +142,7 @@ fn marks(bake: &Bake, settings: &Settings) -> Marks {
         priority,
         wanted,
         at_finest,
+        smooth,
     }
 }
 
@@ -213,10 +226,19 @@ fn step(
     let n = bake.mesh.elements.len();
     let warn = settings.warn_refinement;
     if m.wanted.is_empty() {
-        if m.at_finest == 0 {
+        if m.at_finest == 0 && m.smooth == 0 {
             return Step::Stop {
                 above: 0,
                 stopped: "the estimate meets the target".to_string(),
+                warning: None,
+            };
+        }
+        if m.at_finest == 0 {
+            return Step::Stop {
+                above: m.smooth,
+                stopped: "shadow edges resolved; the preset refines nothing else (--refine on \
+                          refines for the estimate too)"
+                    .to_string(),
                 warning: None,
             };
         }
@@ -228,7 +250,7 @@ fn step(
             })
             .collect();
         return Step::Stop {
-            above: m.at_finest,
+            above: m.at_finest + m.smooth,
             stopped: "finest level reached".to_string(),
             warning: warn.then(|| {
                 format!(
@@ -236,7 +258,7 @@ fn step(
                  still above --max-error {:e}: {}",
                     1u64 << settings.refine_levels.min(63),
                     m.at_finest,
-                    settings.max_error,
+                    settings.refine_target,
                     where_above(scene, bake, &at)
                 )
             }),
@@ -250,13 +272,13 @@ fn step(
             format!("{max_passes} solves")
         };
         return Step::Stop {
-            above: m.wanted.len() + m.at_finest,
+            above: m.wanted.len() + m.at_finest + m.smooth,
             warning: warn.then(|| {
                 format!(
                     "refinement stopped at {why} ({n} elements) with {} elements still above \
                  --max-error {:e}: {}",
                     m.wanted.len(),
-                    settings.max_error,
+                    settings.refine_target,
                     where_above(scene, bake, &m.wanted)
                 )
             }),
@@ -277,7 +299,7 @@ fn step(
         return Step::Split(chosen);
     }
     Step::Stop {
-        above: m.wanted.len() + m.at_finest,
+        above: m.wanted.len() + m.at_finest + m.smooth,
         warning: warn.then(|| {
             format!(
                 "refinement stopped at the element budget --max-elements {} ({n} elements): \
@@ -285,7 +307,7 @@ fn step(
              images) would pass it: {}",
                 budget,
                 m.wanted.len(),
-                settings.max_error,
+                settings.refine_target,
                 where_above(scene, bake, &m.wanted)
             )
         }),

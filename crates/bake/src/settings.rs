@@ -156,16 +156,31 @@ impl Default for Request {
     }
 }
 
-/// GMRES tolerance of the hierarchical transport when `--tolerance` is not given: its links are
-/// accurate to about the link tolerance (1e-2 … 1e-4 of the mean radiosity), so twelve digits
-/// of the linear solve would buy nothing.
-pub const HIERARCHICAL_SOLVE_TOLERANCE: f64 = 1e-6;
+/// GMRES tolerance of the hierarchical transport when `--tolerance` is not given, as a share of
+/// `--max-error`: its links are accurate to about `E` (ε derived from it,
+/// [`transport::LinkTolerance::FromMaxError`]), so a residual a hundred times smaller costs the
+/// result nothing it could resolve.
+pub const HIERARCHICAL_SOLVE_SHARE: f64 = 1e-2;
+
+/// The loosest hierarchical solve: the residual bounds the energy balance's imbalance
+/// (absorbed + escaped against emitted), which is held to 1e-6 of the emitted power whatever
+/// the target.
+pub const HIERARCHICAL_SOLVE_LOOSEST: f64 = 1e-6;
+
+/// The hierarchical solve's tolerance for target `max_error`: [`HIERARCHICAL_SOLVE_SHARE`] of
+/// it, no looser than [`HIERARCHICAL_SOLVE_LOOSEST`] and no tighter than 1e-12.
+pub fn hierarchical_solve_tolerance(max_error: f64) -> f64 {
+    (max_error * HIERARCHICAL_SOLVE_SHARE).clamp(1e-12, HIERARCHICAL_SOLVE_LOOSEST)
+}
 
 /// Everything one bake runs with, resolved from a [`Request`] and its preset.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Settings {
     pub(crate) quality: Quality,
     pub(crate) subdivision: Subdivision,
+    /// Whether `subdivision` is the preset's (no `--subdiv` or `--max-element-size`): a plan
+    /// may then choose a finer grid ([`crate::plan::Plan`]).
+    pub(crate) subdivision_from_preset: bool,
     pub(crate) contour: ContourOptions,
     /// The estimator as given or preset; under the dense transport, when
     /// [`Settings::derive_tolerance`], `auto`'s tolerance comes from `max_error` instead
@@ -173,6 +188,13 @@ pub struct Settings {
     pub(crate) estimator: Estimator,
     /// Target relative error of `b` (`--max-error` or the preset's).
     pub(crate) max_error: f64,
+    /// Refinement's target on the discretisation estimate, relative to the mean radiosity:
+    /// `--max-error` when given, else the preset's [`crate::presets::Preset::refine_target`].
+    pub(crate) refine_target: f64,
+    /// Whether refinement splits for the discretisation estimate, or only at lights' shadow
+    /// edges: the preset's [`crate::presets::Preset::refine_smooth`], or true when a target
+    /// was asked for (`--refine on`, `--max-error`, `--max-elements`).
+    pub(crate) refine_smooth: bool,
     /// Whether the dense transport derives `auto`'s per-pair tolerance from `max_error` and
     /// the scene's largest reflectance: no `--ff-tolerance` and no estimator other than `auto`.
     pub(crate) derive_tolerance: bool,
@@ -186,9 +208,10 @@ pub struct Settings {
     pub(crate) hierarchical_solve: Solve,
     /// Whether `--solver direct` was given (then `auto` keeps the dense transport).
     pub(crate) direct_requested: bool,
-    /// Largest estimated error of a link's contribution to its receiver's radiosity, relative
-    /// to the scene's mean radiosity.
-    pub(crate) link_tolerance: f64,
+    /// `--link-tolerance`: the largest estimated error of a link's contribution to its
+    /// receiver's radiosity, relative to the scene's mean radiosity; `None` derives it from
+    /// `max_error` ([`transport::LinkTolerance::FromMaxError`]).
+    pub(crate) link_tolerance: Option<f64>,
     /// Shadow rays per occludable link.
     pub(crate) link_samples: u32,
     /// Shadow rays per element a polygon may shadow from a point or spot light.
@@ -248,23 +271,31 @@ impl Settings {
             max_iterations: request.max_iterations.unwrap_or(default.max_iterations),
             ..default
         };
+        let max_error = request.max_error.unwrap_or(preset.max_error);
+        let hierarchical_tolerance = hierarchical_solve_tolerance(max_error);
         let (dense_solve, hierarchical_solve) = match (request.bounces, request.solver) {
             (Some(k), _) => (Solve::Bounces(k), Solve::Bounces(k)),
             (None, Some(SolverKind::Iterative)) => (
                 Solve::Iterative(iterative(default.tolerance)),
-                Solve::Iterative(iterative(HIERARCHICAL_SOLVE_TOLERANCE)),
+                Solve::Iterative(iterative(hierarchical_tolerance)),
             ),
             (None, _) => (
                 Solve::Direct,
-                Solve::Iterative(iterative(HIERARCHICAL_SOLVE_TOLERANCE)),
+                Solve::Iterative(iterative(hierarchical_tolerance)),
             ),
         };
         Ok(Settings {
             quality: request.quality,
             subdivision,
+            subdivision_from_preset: request.subdivision.is_none(),
             contour: request.contour,
             estimator,
-            max_error: request.max_error.unwrap_or(preset.max_error),
+            max_error,
+            refine_target: request.max_error.unwrap_or(preset.refine_target),
+            refine_smooth: preset.refine_smooth
+                || request.refine == Some(true)
+                || request.max_error.is_some()
+                || request.max_elements.is_some(),
             derive_tolerance: request.ff_tolerance.is_none()
                 && matches!(request.ff_estimator, None | Some(EstimatorKind::Auto)),
             visibility_samples: request
@@ -274,7 +305,7 @@ impl Settings {
             dense_solve,
             hierarchical_solve,
             direct_requested: request.solver == Some(SolverKind::Direct),
-            link_tolerance: request.link_tolerance.unwrap_or(preset.link_tolerance),
+            link_tolerance: request.link_tolerance,
             link_samples: request.visibility_samples.unwrap_or(preset.link_samples),
             light_samples: request.light_samples.unwrap_or(preset.light_samples),
             irradiance: request.irradiance,
@@ -338,6 +369,8 @@ impl Settings {
         serde_json::json!({
             "quality": self.quality.name(),
             "max_error": self.max_error,
+            "refine_target": self.refine_target,
+            "refine_smooth": self.refine_smooth,
             "ff_tolerance_from_max_error": used != TransportKind::Hierarchical
                 && self.derive_tolerance,
             "subdivision": subdivision,
@@ -355,7 +388,8 @@ impl Settings {
             "ff_tolerance": ff_tolerance,
             "ff_points": ff_points,
             "visibility_samples": self.visibility_samples,
-            "link_tolerance": hierarchical.then_some(self.link_tolerance),
+            "link_tolerance": hierarchical.then_some(self.link_tolerance).flatten(),
+            "link_tolerance_from_max_error": hierarchical && self.link_tolerance.is_none(),
             "link_samples": hierarchical.then_some(self.link_samples),
             "light_samples": self.light_samples,
             "load_links": self.load_links.as_ref().map(|p| p.to_string_lossy().into_owned()),
@@ -453,4 +487,15 @@ fn check(request: &Request) -> Result<(), BakeError> {
         ));
     }
     Ok(())
+}
+
+impl Settings {
+    /// The hierarchical transport's link tolerance: `--link-tolerance`, else derived from
+    /// `max_error`.
+    pub fn link_tolerance(&self) -> transport::LinkTolerance {
+        match self.link_tolerance {
+            Some(t) => transport::LinkTolerance::OfMeanRadiosity(t),
+            None => transport::LinkTolerance::FromMaxError(self.max_error),
+        }
+    }
 }

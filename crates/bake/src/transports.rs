@@ -69,6 +69,9 @@ pub(crate) struct Transported {
     /// Per element and band: the irradiance the links' models miss, their own and the other
     /// elements' after one reflection (hierarchical transport only; [`crate::error::LinkMisses`]).
     pub link_error: Option<[Vec<[f64; BANDS]>; 2]>,
+    /// Hierarchical transport built here: the relative link tolerance its last pass ran with
+    /// and the amplification `B̄ / Ē` that pass measured.
+    pub link_tolerance: Option<(f64, f64)>,
 }
 
 /// Nothing emits and no surface reflects a light's direct light: b = 0 is the exact solution,
@@ -99,6 +102,7 @@ pub(crate) fn dark(p: &Problem) -> Result<Transported, BakeError> {
         row_sums: None,
         saved_links: None,
         link_error: None,
+        link_tolerance: None,
     })
 }
 
@@ -186,6 +190,12 @@ fn solved(
     };
     let row_sums = built.row_sums().cloned();
     let counts = counts(&built.stats);
+    let link_tolerance = match &built.stats {
+        Stats::Hierarchical(s) if s.relative_tolerance > 0.0 => {
+            Some((s.relative_tolerance, s.amplification))
+        }
+        _ => None,
+    };
     let saved_links = match built.operator.into_links() {
         Some(transport) if p.settings.save_links => Some(SavedLinks { key, transport }),
         _ => None,
@@ -201,6 +211,7 @@ fn solved(
         row_sums,
         saved_links,
         link_error,
+        link_tolerance,
     })
 }
 

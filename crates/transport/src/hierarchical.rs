@@ -111,9 +111,8 @@ use trees::*;
 /// Settings of [`HierarchicalTransport::build`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HierarchicalOptions {
-    /// `ε / B̄`: the largest estimated error of one link's contribution to its receiver,
-    /// relative to the scene's mean radiosity.
-    pub link_tolerance: f64,
+    /// ε: the largest estimated error of one link's contribution to its receiver.
+    pub link_tolerance: LinkTolerance,
     /// Shadow rays per link that a polygon can come between.
     pub samples: u32,
     /// The form-factor estimator for link values.
@@ -129,6 +128,56 @@ pub struct HierarchicalOptions {
     pub shadow_masks: bool,
 }
 
+/// How large one link's estimated error may be: ε of the module docs, at each pass from that
+/// pass's mean radiosity B̄ and mean emission Ē (area-weighted, brightest band).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LinkTolerance {
+    /// `ε = t × B̄` (`--link-tolerance t`).
+    OfMeanRadiosity(f64),
+    /// From the target relative error `E` of b (`--max-error`): each link's error reaches b
+    /// through the solve, which amplifies light spread like the scene's own by
+    /// `a = B̄ / Ē` (the furnace estimate in the first pass, each coarse solve's after it),
+    /// so `ε = E × B̄ / a` keeps the amplified error of one link at `E × B̄`. `a` is taken
+    /// no larger than [`MAX_AMPLIFICATION`]: near ρ = 1 a scene's measured amplification
+    /// would ask for links no memory holds (a plan warns there, and prefers the dense
+    /// transport where it fits). Issue 31, docs/accuracy.md.
+    FromMaxError(f64),
+}
+
+/// The largest amplification [`LinkTolerance::FromMaxError`] divides ε by (ρ ≈ 0.98 in a
+/// closed grey scene).
+pub const MAX_AMPLIFICATION: f64 = 50.0;
+
+impl LinkTolerance {
+    /// ε for a pass whose mean radiosity is `mean_b` and mean emission `mean_e`.
+    pub fn epsilon(self, mean_b: f64, mean_e: f64) -> f64 {
+        match self {
+            LinkTolerance::OfMeanRadiosity(t) => t * mean_b,
+            LinkTolerance::FromMaxError(e) => {
+                let amplification = if mean_e > 0.0 {
+                    (mean_b / mean_e).clamp(1.0, MAX_AMPLIFICATION)
+                } else {
+                    MAX_AMPLIFICATION
+                };
+                e * mean_b / amplification
+            }
+        }
+    }
+
+    /// `ε / B̄` for a pass whose mean radiosity is `mean_b` and mean emission `mean_e` (the
+    /// relative tolerance it amounts to there).
+    pub fn relative(self, mean_b: f64, mean_e: f64) -> f64 {
+        if mean_b > 0.0 {
+            self.epsilon(mean_b, mean_e) / mean_b
+        } else {
+            match self {
+                LinkTolerance::OfMeanRadiosity(t) => t,
+                LinkTolerance::FromMaxError(e) => e / MAX_AMPLIFICATION,
+            }
+        }
+    }
+}
+
 /// Memory per kept link: the link itself while refining (72 bytes) and two operator entries
 /// (source index, coefficient, two gradients and two residuals, 44 bytes each, plus offsets).
 pub const BYTES_PER_LINK: u64 = 176;
@@ -136,7 +185,7 @@ pub const BYTES_PER_LINK: u64 = 176;
 impl Default for HierarchicalOptions {
     fn default() -> Self {
         HierarchicalOptions {
-            link_tolerance: 0.01,
+            link_tolerance: LinkTolerance::OfMeanRadiosity(0.01),
             samples: 25,
             estimator: Estimator::Auto { tolerance: 1e-3 },
             contour: ContourOptions::default(),
@@ -159,7 +208,7 @@ pub enum LinkProgress {
 }
 
 /// What building the hierarchy did.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct HierarchicalStats {
     /// Nodes of all trees, leaves (= elements) included.
     pub nodes: u64,
@@ -191,14 +240,19 @@ pub struct HierarchicalStats {
     pub by_method: [u64; 3],
     /// Linking passes run.
     pub passes: u32,
+    /// The last pass's ε over its mean radiosity (the relative link tolerance it ran with),
+    /// and its measured amplification `B̄ / Ē` (0 when nothing emits).
+    pub relative_tolerance: f64,
+    pub amplification: f64,
 }
 
 /// Why the hierarchy could not be built.
 #[derive(Debug, thiserror::Error)]
 pub enum LinkError {
     #[error(
-        "the hierarchy needs more than {limit} links (about {gib:.1} GiB) at --link-tolerance \
-         {tolerance}; raise --link-tolerance or use a larger --max-element-size"
+        "the hierarchy needs more than {limit} links (about {gib:.1} GiB) at a link tolerance \
+         of {tolerance:.1e} of the mean radiosity; raise --max-error (or --link-tolerance) or \
+         use a larger --max-element-size"
     )]
     TooManyLinks {
         limit: u64,
@@ -260,11 +314,13 @@ impl HierarchicalTransport {
 
         // Pass 1: B̄ from the furnace estimate Σ A e / Σ A (1 − ρ) (a closed grey scene's mean
         // radiosity), and B = max(e, B̄) (below).
-        let (mut emitted, mut absorbing) = (0.0, 0.0);
+        let (mut emitted, mut absorbing, mut total_area) = (0.0, 0.0, 0.0);
         for (k, el) in mesh.elements.iter().enumerate() {
             emitted += el.area * max3(e[k]);
             absorbing += el.area * (1.0 - max3(rho[k])).max(1e-3);
+            total_area += el.area;
         }
+        let mean_e = emitted / f64::max(total_area, f64::MIN_POSITIVE);
         let mean_b = if absorbing > 0.0 {
             emitted / absorbing
         } else {
@@ -279,7 +335,7 @@ impl HierarchicalTransport {
         let too_many = || LinkError::TooManyLinks {
             limit,
             gib: limit as f64 * BYTES_PER_LINK as f64 / (1u64 << 30) as f64,
-            tolerance: options.link_tolerance,
+            tolerance: options.link_tolerance.relative(mean_b, mean_e),
         };
         // Every pass links with the same trees and counters, its own B and ε.
         let base = Linker {
@@ -297,7 +353,7 @@ impl HierarchicalTransport {
         let linker = Linker {
             b: &b_node,
             spread: &spread_node,
-            epsilon: options.link_tolerance * mean_b,
+            epsilon: options.link_tolerance.epsilon(mean_b, mean_e),
             ..base
         };
         let culling = Culling::new(&nodes, &roots, &leaves);
@@ -306,8 +362,8 @@ impl HierarchicalTransport {
             return Err(too_many());
         }
         let (mut links, mut dropped) = (first.links, first.dropped);
-        let total_area: f64 = mesh.elements.iter().map(|el| el.area).sum();
         let mut passes = 1;
+        let mut last_mean = mean_b;
         let accuracy = options.estimator.row_sum_accuracy();
         let no_masks = Masks::none(nodes.len());
         while passes < options.passes {
@@ -340,10 +396,11 @@ impl HierarchicalTransport {
                 .map(|(el, b)| el.area * max3(*b))
                 .sum::<f64>()
                 / total_area.max(f64::MIN_POSITIVE);
+            last_mean = mean;
             let linker = Linker {
                 b: &b_node,
                 spread: &spread_node,
-                epsilon: options.link_tolerance * mean,
+                epsilon: options.link_tolerance.epsilon(mean, mean_e),
                 ..base
             };
             progress(LinkProgress::Pass {
@@ -404,6 +461,12 @@ impl HierarchicalTransport {
             kernel_evaluations: counters.kernel_evaluations.load(Ordering::Relaxed),
             by_method: [0, 1, 2].map(|k| counters.by_method[k].load(Ordering::Relaxed)),
             passes,
+            relative_tolerance: options.link_tolerance.relative(last_mean, mean_e),
+            amplification: if mean_e > 0.0 {
+                last_mean / mean_e
+            } else {
+                0.0
+            },
         };
         Ok(HierarchicalTransport {
             n,

@@ -28,7 +28,7 @@ pub use build::{
 };
 pub use hierarchical::{
     HierarchicalOptions, HierarchicalStats, HierarchicalTransport, LinkError, LinkProgress,
-    LinksFileError,
+    LinkTolerance, LinksFileError, MAX_AMPLIFICATION,
 };
 use solver::{Operator, BANDS};
 

@@ -78,9 +78,19 @@ fn run(s: &Scene, options: &Options) -> Run {
         rho: &s.rho,
         source: &s.e,
     };
+    let start = std::time::Instant::now();
     let built = build(&problem, options, &Quiet, &mut |_| {}).expect("build");
     let (links, blocked, dropped) = match &built.stats {
-        bake_transport::Stats::Hierarchical(h) => (h.links, h.blocked_links, h.clusters_dropped),
+        bake_transport::Stats::Hierarchical(h) => {
+            println!(
+                "hierarchy: {} links, relative tolerance {:.2e}, amplification {:.2}, built in {:.2} s",
+                h.links,
+                h.relative_tolerance,
+                h.amplification,
+                start.elapsed().as_secs_f64()
+            );
+            (h.links, h.blocked_links, h.clusters_dropped)
+        }
         _ => (0, 0, 0),
     };
     let op = built.operator.view().expect("view");
@@ -121,7 +131,7 @@ fn dense() -> Options {
 }
 
 /// The hierarchical transport at its defaults (link tolerance 1 % of the mean radiosity, the
-/// `normal` preset's), or at `BAKE_LINK_TOLERANCE` and without shadow masks when
+/// `normal` preset's), or at `BAKE_LINK_TOLERANCE` (or derived from `BAKE_MAX_ERROR`) and without shadow masks when
 /// `BAKE_SHADOW_MASKS=0`, for [`measure`].
 fn hierarchical() -> Options {
     let mut o = HierarchicalOptions::default();
@@ -129,7 +139,13 @@ fn hierarchical() -> Options {
         .ok()
         .and_then(|t| t.parse().ok())
     {
-        o.link_tolerance = t;
+        o.link_tolerance = bake_transport::LinkTolerance::OfMeanRadiosity(t);
+    }
+    if let Some(e) = std::env::var("BAKE_MAX_ERROR")
+        .ok()
+        .and_then(|t| t.parse().ok())
+    {
+        o.link_tolerance = bake_transport::LinkTolerance::FromMaxError(e);
     }
     if std::env::var("BAKE_SHADOW_MASKS").is_ok_and(|v| v == "0") {
         o.shadow_masks = false;
@@ -438,6 +454,10 @@ fn measure() {
             measure_one(Path::new(&office), 0.5)
         );
     }
+    println!(
+        "cube at diagonal/32: {:#?}",
+        measure_one(&fixture("cube.gltf"), 3f64.sqrt() / 32.0)
+    );
     println!(
         "cornell at 27: {:#?}",
         measure_one(&fixture("cornell.gltf"), 27.0)

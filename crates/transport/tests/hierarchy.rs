@@ -139,7 +139,7 @@ fn build_with(
     let e = first_polygon_emits(&mesh);
     let rho = vec![[0.5; 3]; n];
     let options = HierarchicalOptions {
-        link_tolerance: tolerance,
+        link_tolerance: bake_transport::LinkTolerance::OfMeanRadiosity(tolerance),
         estimator: Estimator::Contour,
         contour: ContourOptions::default(),
         shadow_masks,
@@ -258,7 +258,7 @@ fn too_many_links_is_a_clear_refusal() {
     let n = mesh.elements.len();
     let e = first_polygon_emits(&mesh);
     let options = HierarchicalOptions {
-        link_tolerance: 1e-3,
+        link_tolerance: bake_transport::LinkTolerance::OfMeanRadiosity(1e-3),
         max_links: 10,
         ..HierarchicalOptions::default()
     };
@@ -467,7 +467,7 @@ fn build_gives_each_kind_and_its_view_says_what_it_can_do() {
     let (direct, _) = build_on(polygons, mesh.clone(), 0.01);
     let problem = scene.problem();
     let hierarchical = bake_transport::Options::Hierarchical(HierarchicalOptions {
-        link_tolerance: 0.01,
+        link_tolerance: bake_transport::LinkTolerance::OfMeanRadiosity(0.01),
         estimator: Estimator::Contour,
         contour: ContourOptions::default(),
         ..HierarchicalOptions::default()
