@@ -323,11 +323,44 @@ fn run_refined(
     settings: &Settings,
     progress: &dyn Progress,
 ) -> Result<Bake, BakeError> {
-    let first = run_mesh(scene, settings, progress, None)?;
-    let mut bake = refine::refine(scene, settings, progress, first)?;
+    // One tree of occluders for every solve of a refining bake (the polygons do not change).
+    let lap = Instant::now();
+    let occluders = Occluders::new(&scene.polygons)?.with_cutouts(cutouts(scene));
+    let setup = lap.elapsed().as_secs_f64();
+    let first = run_mesh(scene, settings, progress, None, &occluders)?;
+    let mut bake = refine::refine(scene, settings, progress, first, &occluders)?;
+    insert_stage(&mut bake, "visibility_setup", setup, "mesh");
+    // Where the escaped light goes, once, on the final mesh.
+    let lap = Instant::now();
+    bake.escape = escape::estimate(
+        &bake.mesh,
+        &bake.solution.b,
+        &occluders,
+        bake.energy.escaped,
+    );
+    if bake.escape.rays > 0 {
+        let last = bake.timings.last().map(|t| t.0).unwrap_or("mesh");
+        insert_stage(&mut bake, "escape", lap.elapsed().as_secs_f64(), last);
+    }
     bake.counts = bake.counts.with_scene(scene, &bake.mesh);
     bake.accuracy.error = Some(error::summary(&bake.mesh, &bake.error));
     Ok(bake)
+}
+
+/// Records stage `name` (`seconds`, and the peak memory now) right after stage `after` in
+/// `bake`'s timings (at the end when `after` is not there).
+fn insert_stage(bake: &mut Bake, name: &'static str, seconds: f64, after: &str) {
+    let at = |list: &Vec<(&'static str, f64)>| {
+        list.iter()
+            .position(|s| s.0 == after)
+            .map_or(list.len(), |k| k + 1)
+    };
+    let k = at(&bake.timings);
+    bake.timings.insert(k, (name, seconds));
+    if let Some(mib) = peak_rss_mib_now() {
+        let k = at(&bake.peak_rss_mib);
+        bake.peak_rss_mib.insert(k, (name, mib));
+    }
 }
 
 /// Whether the plan of `scene`'s grids is the hierarchy `auto` gives a small scene with
@@ -365,12 +398,14 @@ impl Stages {
 }
 
 /// One bake on the mesher's grids (`given` = `None`) or on a given (refined) element mesh,
-/// which the dense transport takes as it is.
+/// which the dense transport takes as it is, with `occluders` made from `scene`'s polygons
+/// (and cut-outs). Its `escape` is left empty: [`run`] estimates it once, on the final mesh.
 pub(crate) fn run_mesh(
     scene: &Scene,
     settings: &Settings,
     progress: &dyn Progress,
     given: Option<ElementMesh>,
+    occluders: &Occluders,
 ) -> Result<Bake, BakeError> {
     let mut stages = Stages::new();
     let mut warnings = Vec::new();
@@ -389,13 +424,7 @@ pub(crate) fn run_mesh(
     warnings.extend(advice::emissive_is_base_colour(scene));
     stages.record("mesh");
 
-    let cutouts = cutouts(scene);
-    let occluders = Occluders::new(&scene.polygons)?.with_cutouts(cutouts);
-    stages.record("visibility_setup");
-
-    let light = Light::of(
-        scene, &mesh, &occluders, &rho, &emission, settings, progress,
-    );
+    let light = Light::of(scene, &mesh, occluders, &rho, &emission, settings, progress);
     warnings.extend(advice::lights_reaching_little(scene, &light.lit.stats));
     if !scene.lights.is_empty() {
         stages.record("direct_light");
@@ -416,7 +445,7 @@ pub(crate) fn run_mesh(
         scene,
         settings,
         mesh: &mesh,
-        occluders: &occluders,
+        occluders,
         rho: &rho,
         emission: &emission,
         external: &light.external,
@@ -432,10 +461,6 @@ pub(crate) fn run_mesh(
         transports::dense(&problem, progress, &mut stages, &mut warnings)?
     };
     stages.record("energy");
-    let escape = escape::estimate(&mesh, &done.solution.b, &occluders, done.energy.escaped);
-    if escape.rays > 0 {
-        stages.record("escape");
-    }
 
     let accuracy = accuracy_of(&plan, rho_max, &done);
     let error = estimate_error(&problem, &done);
@@ -464,7 +489,7 @@ pub(crate) fn run_mesh(
         plan,
         irradiance,
         energy,
-        escape,
+        escape: escape::Escape::default(),
         counts,
         effects,
         accuracy,

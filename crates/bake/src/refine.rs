@@ -28,6 +28,7 @@
 use crate::{error, run_mesh, Bake, BakeError, Progress, Settings, TransportKind};
 use scene::Scene;
 use std::time::Instant;
+use visibility::Occluders;
 
 /// Elements are split at most this many times below the mesher's grid (to 1/32 of its size).
 pub const MAX_LEVELS: u8 = 5;
@@ -332,6 +333,7 @@ pub fn refine(
     settings: &Settings,
     progress: &dyn Progress,
     first: Bake,
+    occluders: &Occluders,
 ) -> Result<Bake, BakeError> {
     let mut bake = first;
     let before = bake.mesh.elements.len();
@@ -372,7 +374,7 @@ pub fn refine(
         }
         let refined = bake.mesh.refine(&marked)?.mesh;
         let spent = lap.elapsed().as_secs_f64();
-        let mut next = run_mesh(scene, settings, progress, Some(refined))?;
+        let mut next = run_mesh(scene, settings, progress, Some(refined), occluders)?;
         add_timings(&mut timings, &[("refine", spent)]);
         add_timings(&mut timings, &next.timings);
         for w in std::mem::take(&mut bake.warnings) {
@@ -434,9 +436,16 @@ mod tests {
             .refine(&vec![true; coarse.elements.len()])
             .expect("refine")
             .mesh;
-        let on_refined =
-            run_mesh(&scene, &settings(8), &crate::Silent, Some(refined)).expect("bake");
-        let fine = run_mesh(&scene, &settings(8), &crate::Silent, None).expect("bake");
+        let occluders = visibility::Occluders::new(&scene.polygons).expect("occluders");
+        let on_refined = run_mesh(
+            &scene,
+            &settings(8),
+            &crate::Silent,
+            Some(refined),
+            &occluders,
+        )
+        .expect("bake");
+        let fine = run_mesh(&scene, &settings(8), &crate::Silent, None, &occluders).expect("bake");
         assert_eq!(on_refined.mesh.elements.len(), fine.mesh.elements.len());
         let key = |c: glam::DVec3| (c * 1e6).round().to_array().map(|x| x as i64);
         let at: std::collections::HashMap<_, _> = fine
