@@ -23,6 +23,19 @@ use serde_json::Value;
 /// The extension's name.
 pub(crate) const NAME: &str = "KHR_draco_mesh_compression";
 
+/// The most points (and faces) a Draco stream may declare per byte of its own: a thousand
+/// times what real meshes reach, so only a header that lies is refused.
+const MAX_POINTS_PER_BYTE: u64 = 1024;
+
+/// Streams of any size may declare this many points and faces.
+const MIN_POINT_LIMIT: u64 = 65_536;
+
+/// The most bytes a Draco stream may decode to per byte of its own (real meshes: about 4–10),
+/// and what a stream of any size may decode to: draco-core applies this limit where it does
+/// not check the point count (a sequential stream's values).
+const MAX_DECODED_PER_BYTE: u64 = 4096;
+const MIN_DECODED_LIMIT: u64 = 1 << 20;
+
 /// Decodes every Draco-compressed triangle primitive of `root` (see the module doc). The
 /// buffer views must already be plain (`EXT_meshopt_compression` decoded first).
 pub(crate) fn decode_primitives(root: &mut Root, buffers: &mut Vec<Data>) -> Result<(), String> {
@@ -74,11 +87,19 @@ fn decode_primitive(
         .and_then(Value::as_u64)
         .ok_or("`bufferView` is missing or not an index")?;
     let bytes = view_bytes(root, buffers, view)?;
-    let max = crate::accessor::MAX_COUNT as u64;
+    // A stream holds a few bytes per point (Google's encoder writes 2–6 at 14-bit
+    // positions): one claiming far more points, or decoded bytes, than its size can encode
+    // is refused from its header, before the decoder loops over them (fuzzing found a
+    // 72-byte sequential stream declaring 1.98 M points, 194 MB of values, that kept it busy
+    // 1.0–1.6 s before the importer refused it; it is now refused at once).
+    let max = (MAX_POINTS_PER_BYTE * bytes.len() as u64 + MIN_POINT_LIMIT)
+        .min(crate::accessor::MAX_COUNT as u64);
     let limits = draco_core::DecodeLimits::default()
         .with_max_points(max)
         .with_max_faces(max)
-        .with_max_decoded_bytes(1 << 30);
+        .with_max_decoded_bytes(
+            (MAX_DECODED_PER_BYTE * bytes.len() as u64 + MIN_DECODED_LIMIT).min(1 << 30),
+        );
     let mut buffer = draco_core::DecoderBuffer::new(bytes).with_limits(limits);
     let mut mesh = draco_core::Mesh::new();
     draco_core::MeshDecoder::new()

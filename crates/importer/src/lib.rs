@@ -224,6 +224,85 @@ pub mod fuzzing {
         let _ = load_obj_bytes(obj, mtl);
     }
 
+    /// A PNG or JPEG texture's bytes, decoded as an embedded image is (the `image` crate's
+    /// decoders behind the importer's size check).
+    pub fn image(data: &[u8]) {
+        let _ = crate::texture::decode_image(data, 0);
+    }
+
+    /// A `KHR_draco_mesh_compression` bitstream: the input is the BIN chunk of a GLB whose
+    /// one triangle primitive points the extension at all of it, so every input reaches the
+    /// Draco decoder.
+    pub fn draco(data: &[u8]) {
+        let _ = load_bytes(&draco_glb(data), Format::Gltf);
+    }
+
+    /// The GLB [`draco`] loads: one triangle (three points, three indices) whose primitive
+    /// takes POSITION from Draco attribute 0 of `data`.
+    pub fn draco_glb(data: &[u8]) -> Vec<u8> {
+        let n = data.len();
+        let json = format!(
+            r#"{{"asset":{{"version":"2.0"}},
+"extensionsUsed":["KHR_draco_mesh_compression"],
+"extensionsRequired":["KHR_draco_mesh_compression"],
+"buffers":[{{"byteLength":{n}}}],
+"bufferViews":[{{"buffer":0,"byteLength":{n}}}],
+"accessors":[
+ {{"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,1]}},
+ {{"componentType":5125,"count":3,"type":"SCALAR"}}],
+"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1,
+ "extensions":{{"KHR_draco_mesh_compression":{{"bufferView":0,"attributes":{{"POSITION":0}}}}}}}}]}}],
+"nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0}}"#
+        );
+        glb(json.as_bytes(), Some(data))
+    }
+
+    /// An `EXT_meshopt_compression` buffer view: the first byte picks the mode (attributes,
+    /// triangles, indices) and the stride, the next two the element count (1 … 65 536), the
+    /// rest is the compressed stream, in the BIN chunk of a GLB whose one view points the
+    /// extension at it (with a fallback buffer of the decoded size).
+    pub fn meshopt(data: &[u8]) {
+        let _ = load_bytes(&meshopt_glb(data), Format::Gltf);
+    }
+
+    /// The GLB [`meshopt`] loads (see there).
+    pub fn meshopt_glb(data: &[u8]) -> Vec<u8> {
+        let (head, stream) = data.split_at(data.len().min(3));
+        let pick = head.first().copied().unwrap_or(0);
+        let count = match head {
+            [_, a, b] => usize::from(u16::from_le_bytes([*a, *b])) + 1,
+            _ => 1,
+        };
+        let (mode, strides): (&str, &[usize]) = match pick % 3 {
+            0 => ("ATTRIBUTES", &[4, 8, 12, 16, 20, 24, 32, 64]),
+            1 => ("TRIANGLES", &[2, 4]),
+            _ => ("INDICES", &[2, 4]),
+        };
+        let stride = strides[usize::from(pick / 3) % strides.len()];
+        let count = if mode == "TRIANGLES" {
+            count.div_ceil(3) * 3
+        } else {
+            count
+        };
+        let (n, decoded) = (stream.len(), stride * count);
+        // glTF: only vertex attribute views have a byteStride (the extension has its own).
+        let view_stride = if mode == "ATTRIBUTES" {
+            format!(r#""byteStride":{stride},"#)
+        } else {
+            String::new()
+        };
+        let json = format!(
+            r#"{{"asset":{{"version":"2.0"}},
+"extensionsUsed":["EXT_meshopt_compression"],
+"buffers":[{{"byteLength":{n}}},
+ {{"byteLength":{decoded},"extensions":{{"EXT_meshopt_compression":{{"fallback":true}}}}}}],
+"bufferViews":[{{"buffer":1,"byteLength":{decoded},{view_stride}
+ "extensions":{{"EXT_meshopt_compression":{{"buffer":0,"byteLength":{n},
+ "byteStride":{stride},"count":{count},"mode":"{mode}"}}}}}}]}}"#
+        );
+        glb(json.as_bytes(), Some(stream))
+    }
+
     fn split_at_nul(data: &[u8]) -> (&[u8], Option<&[u8]>) {
         match data.iter().position(|&b| b == 0) {
             Some(at) => (&data[..at], Some(&data[at + 1..])),

@@ -415,3 +415,85 @@ fn reference_encoder_draco_files_decode_to_the_uncompressed_polygons() {
         eprintln!("{name} {method}: max deviation {worst:.3e} (step {step:.3e})");
     }
 }
+
+/// The `draco` fuzz target's GLB (`bake_importer::fuzzing::draco_glb`) takes a valid stream to
+/// the decoder and through it: a triangle encoded by draco-core loads as one polygon (so the
+/// fuzzer's inputs reach the Draco decoder, not a JSON error before it).
+#[test]
+fn the_draco_fuzz_harness_reaches_the_decoder() {
+    use draco_core::{
+        DataType, EncoderBuffer, EncoderOptions, GeometryAttributeType, Mesh, MeshEncoder,
+        PointAttribute, PointIndex,
+    };
+    let mut mesh = Mesh::new();
+    let mut position = PointAttribute::new();
+    position.init(
+        GeometryAttributeType::Position,
+        3,
+        DataType::Float32,
+        false,
+        3,
+    );
+    for (i, p) in [[0f32, 0., 0.], [1., 0., 0.], [0., 1., 0.]]
+        .iter()
+        .enumerate()
+    {
+        position
+            .buffer_mut()
+            .write(i * 12, &p.map(f32::to_le_bytes).concat());
+    }
+    let id = mesh.add_attribute(position);
+    mesh.add_face([0, 1, 2].map(PointIndex));
+    let mut options = EncoderOptions::new();
+    options.set_attribute_int(id, "quantization_bits", 14);
+    let mut encoder = MeshEncoder::new();
+    encoder.set_mesh(mesh);
+    let mut out = EncoderBuffer::new();
+    encoder.encode(&options, &mut out).unwrap();
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("draco.glb");
+    std::fs::write(&path, bake_importer::fuzzing::draco_glb(out.data())).unwrap();
+    let scene = load(&path).expect("the harness's GLB with a valid stream loads");
+    assert_eq!(scene.polygons.len(), 1);
+    // And a corrupt one is an error, not a panic.
+    bake_importer::fuzzing::draco(&out.data()[..out.data().len() / 2]);
+}
+
+/// The `meshopt` fuzz target's GLB (`bake_importer::fuzzing::meshopt_glb`) takes its input to
+/// the meshopt decoder: a stream that is not one is refused by the decoder (its error names
+/// the extension and the view), not by the JSON before it, in each of the three modes.
+#[test]
+fn the_meshopt_fuzz_harness_reaches_the_decoder() {
+    let dir = tempfile::tempdir().unwrap();
+    for pick in [0u8, 1, 2] {
+        let mut input = vec![pick, 5, 0];
+        input.extend_from_slice(&[0x55; 40]);
+        let path = dir.path().join(format!("meshopt{pick}.glb"));
+        std::fs::write(&path, bake_importer::fuzzing::meshopt_glb(&input)).unwrap();
+        let error = load(&path).expect_err("not a meshopt stream").to_string();
+        assert!(
+            error.contains("buffer view 0 (EXT_meshopt_compression)"),
+            "mode {pick}: {error}"
+        );
+        bake_importer::fuzzing::meshopt(&input);
+    }
+}
+
+/// A 72-byte Draco stream (found by `tools/fuzz draco`) declaring 1.98 M points, 194 MB of
+/// sequential values: the decoder took 1.0–1.6 s over it before the importer refused it.
+/// Now the limits scale with the stream's size and refuse it from its header.
+#[test]
+fn a_tiny_draco_stream_declaring_millions_of_points_is_refused_from_its_header() {
+    let bytes = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/regressions/draco-many-points-1.draco-bytes"
+    ))
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("draco.glb");
+    std::fs::write(&path, bake_importer::fuzzing::draco_glb(&bytes)).unwrap();
+    let error = load(&path).expect_err("refused").to_string();
+    assert!(error.contains("Decode limit exceeded"), "{error}");
+    assert!(!error.contains('\n'), "{error}");
+}

@@ -3,7 +3,8 @@
 //! each must load or fail with an error, never panic.
 //!
 //! `regressions/NAME.gltf-bytes` runs the `gltf` target's harness, `NAME.obj-bytes` the
-//! `obj` one's (OBJ text, then a NUL and the MTL).
+//! `obj` one's (OBJ text, then a NUL and the MTL), `NAME.image-bytes`, `NAME.draco-bytes` and
+//! `NAME.meshopt-bytes` the `image`, `draco` and `meshopt` ones'.
 
 use std::path::Path;
 
@@ -23,6 +24,9 @@ fn every_saved_input_loads_or_fails_without_panicking() {
         let harness: fn(&[u8]) = match extension(path) {
             Some("gltf-bytes") => bake_importer::fuzzing::gltf,
             Some("obj-bytes") => bake_importer::fuzzing::obj,
+            Some("image-bytes") => bake_importer::fuzzing::image,
+            Some("draco-bytes") => bake_importer::fuzzing::draco,
+            Some("meshopt-bytes") => bake_importer::fuzzing::meshopt,
             _ => continue,
         };
         let bytes = std::fs::read(path).expect("read a saved input");
