@@ -329,7 +329,7 @@ fn run_refined(
     let setup = lap.elapsed().as_secs_f64();
     let first = run_mesh(scene, settings, progress, None, &occluders)?;
     let mut bake = refine::refine(scene, settings, progress, first, &occluders)?;
-    insert_stage(&mut bake, "visibility_setup", setup, "mesh");
+    insert_stage(&mut bake, "visibility_setup", setup, Some("mesh"));
     // Where the escaped light goes, once, on the final mesh.
     let lap = Instant::now();
     bake.escape = escape::estimate(
@@ -339,8 +339,7 @@ fn run_refined(
         bake.energy.escaped,
     );
     if bake.escape.rays > 0 {
-        let last = bake.timings.last().map(|t| t.0).unwrap_or("mesh");
-        insert_stage(&mut bake, "escape", lap.elapsed().as_secs_f64(), last);
+        insert_stage(&mut bake, "escape", lap.elapsed().as_secs_f64(), None);
     }
     bake.counts = bake.counts.with_scene(scene, &bake.mesh);
     bake.accuracy.error = Some(error::summary(&bake.mesh, &bake.error));
@@ -348,11 +347,11 @@ fn run_refined(
 }
 
 /// Records stage `name` (`seconds`, and the peak memory now) right after stage `after` in
-/// `bake`'s timings (at the end when `after` is not there).
-fn insert_stage(bake: &mut Bake, name: &'static str, seconds: f64, after: &str) {
+/// `bake`'s timings (at the end when `after` is `None` or not there).
+fn insert_stage(bake: &mut Bake, name: &'static str, seconds: f64, after: Option<&str>) {
     let at = |list: &Vec<(&'static str, f64)>| {
         list.iter()
-            .position(|s| s.0 == after)
+            .position(|s| Some(s.0) == after)
             .map_or(list.len(), |k| k + 1)
     };
     let k = at(&bake.timings);

@@ -12,7 +12,6 @@ use crate::{
     ROW_SUM_WARNING_MARGIN, SMALL_SCENE_ELEMENTS,
 };
 use form_factor::Estimator;
-
 use transport::{DenseOptions, HierarchicalOptions};
 
 /// What a plan needs to know of the scene before meshing: sizes and the reflectance bound.
@@ -210,13 +209,9 @@ impl LinkRisk {
             Some(t) => amplification * rho_bound * t,
             // ε = E B̄ / a with the measured amplification a ≈ 1 / (1 − ρ) of a grey scene,
             // at most MAX_AMPLIFICATION (transport::LinkTolerance::FromMaxError).
+            // (ρ = 1 gives ∞, clamped to the cap.)
             None => {
                 let measured = (1.0 / (1.0 - rho_bound)).clamp(1.0, transport::MAX_AMPLIFICATION);
-                let measured = if measured.is_finite() {
-                    measured
-                } else {
-                    transport::MAX_AMPLIFICATION
-                };
                 amplification * rho_bound * settings.max_error / measured
             }
         };

@@ -2,9 +2,10 @@
 //! element size (relative to the scene), the form-factor estimator and its tolerance (the
 //! hierarchical transport's; the dense transport derives its own from `max_error`), the
 //! target relative error of `b` (from which the dense transport's per-pair tolerance, the
-//! hierarchical transport's link tolerance and its solve's tolerance are derived), and the
-//! shadow rays per occludable pair; explicit options override it. The values were chosen from the Pareto front measured by
-//! `tools/accuracy-report` on the paper's cube and the Cornell box; `docs/accuracy.md` lists
+//! hierarchical transport's link tolerance and its solve's tolerance are derived), what
+//! refinement splits for, and the shadow rays per occludable pair; explicit options override
+//! it. The values were chosen from the Pareto front measured by `tools/accuracy-report` on the
+//! paper's cube, the Cornell box, the sun floor and `small_room.obj`; `docs/accuracy.md` lists
 //! each preset's error and time there.
 
 use form_factor::Estimator;
@@ -75,7 +76,7 @@ pub struct Preset {
     /// ([`crate::accuracy::pair_tolerance`]).
     pub max_error: f64,
     /// What refinement splits for: an element whose discretisation estimate passes this times
-    /// the mean radiosity (`--max-error` sets both). A tenth of `max_error` or less: the
+    /// the mean radiosity (`--max-error` sets both). A third to a hundredth of `max_error`: the
     /// estimate (b against the plane through its neighbours) runs well below the error the
     /// displayed field has, and refining to it was measured to beat a uniformly finer grid at
     /// equal time on the cube, the Cornell box and `small_room.obj` (issue 31,

@@ -123,11 +123,12 @@ fn marks(bake: &Bake, settings: &Settings) -> Marks {
     let mut wanted = Vec::new();
     let mut at_finest = 0;
     let mut smooth = 0;
+    let refine_smooth = settings.refine_smooth();
     for (i, &p) in priority.iter().enumerate() {
         if p.is_nan() || p <= 1.0 {
             continue;
         }
-        if !settings.refine_smooth && bake.partly_lit.get(i) != Some(&true) {
+        if !refine_smooth && bake.partly_lit.get(i) != Some(&true) {
             smooth += 1;
             continue;
         }

@@ -178,9 +178,6 @@ pub fn hierarchical_solve_tolerance(max_error: f64) -> f64 {
 pub struct Settings {
     pub(crate) quality: Quality,
     pub(crate) subdivision: Subdivision,
-    /// Whether `subdivision` is the preset's (no `--subdiv` or `--max-element-size`): a plan
-    /// may then choose a finer grid ([`crate::plan::Plan`]).
-    pub(crate) subdivision_from_preset: bool,
     pub(crate) contour: ContourOptions,
     /// The estimator as given or preset; under the dense transport, when
     /// [`Settings::derive_tolerance`], `auto`'s tolerance comes from `max_error` instead
@@ -191,10 +188,6 @@ pub struct Settings {
     /// Refinement's target on the discretisation estimate, relative to the mean radiosity:
     /// `--max-error` when given, else the preset's [`crate::presets::Preset::refine_target`].
     pub(crate) refine_target: f64,
-    /// Whether refinement splits for the discretisation estimate, or only at lights' shadow
-    /// edges: the preset's [`crate::presets::Preset::refine_smooth`], or true when a target
-    /// was asked for (`--refine on`, `--max-error`, `--max-elements`).
-    pub(crate) refine_smooth: bool,
     /// Whether the dense transport derives `auto`'s per-pair tolerance from `max_error` and
     /// the scene's largest reflectance: no `--ff-tolerance` and no estimator other than `auto`.
     pub(crate) derive_tolerance: bool,
@@ -287,15 +280,10 @@ impl Settings {
         Ok(Settings {
             quality: request.quality,
             subdivision,
-            subdivision_from_preset: request.subdivision.is_none(),
             contour: request.contour,
             estimator,
             max_error,
             refine_target: request.max_error.unwrap_or(preset.refine_target),
-            refine_smooth: preset.refine_smooth
-                || request.refine == Some(true)
-                || request.max_error.is_some()
-                || request.max_elements.is_some(),
             derive_tolerance: request.ff_tolerance.is_none()
                 && matches!(request.ff_estimator, None | Some(EstimatorKind::Auto)),
             visibility_samples: request
@@ -323,6 +311,23 @@ impl Settings {
             refine_levels: request.refine_levels.unwrap_or(crate::refine::MAX_LEVELS),
             max_reflectance: request.max_reflectance.unwrap_or(DEFAULT_MAX_REFLECTANCE),
         })
+    }
+
+    /// The hierarchical transport's link tolerance: `--link-tolerance`, else derived from
+    /// `max_error`.
+    pub fn link_tolerance(&self) -> transport::LinkTolerance {
+        match self.link_tolerance {
+            Some(t) => transport::LinkTolerance::OfMeanRadiosity(t),
+            None => transport::LinkTolerance::FromMaxError(self.max_error),
+        }
+    }
+
+    /// Whether refinement splits for the discretisation estimate, or only at lights' shadow
+    /// edges: the preset's [`crate::presets::Preset::refine_smooth`], or always when a target
+    /// was asked for ([`Settings::warn_refinement`]: `--refine on`, `--max-error`,
+    /// `--max-elements`).
+    pub(crate) fn refine_smooth(&self) -> bool {
+        self.quality.preset().refine_smooth || self.warn_refinement
     }
 
     /// The solve the given transport runs with.
@@ -370,7 +375,7 @@ impl Settings {
             "quality": self.quality.name(),
             "max_error": self.max_error,
             "refine_target": self.refine_target,
-            "refine_smooth": self.refine_smooth,
+            "refine_smooth": self.refine_smooth(),
             "ff_tolerance_from_max_error": used != TransportKind::Hierarchical
                 && self.derive_tolerance,
             "subdivision": subdivision,
@@ -487,15 +492,4 @@ fn check(request: &Request) -> Result<(), BakeError> {
         ));
     }
     Ok(())
-}
-
-impl Settings {
-    /// The hierarchical transport's link tolerance: `--link-tolerance`, else derived from
-    /// `max_error`.
-    pub fn link_tolerance(&self) -> transport::LinkTolerance {
-        match self.link_tolerance {
-            Some(t) => transport::LinkTolerance::OfMeanRadiosity(t),
-            None => transport::LinkTolerance::FromMaxError(self.max_error),
-        }
-    }
 }

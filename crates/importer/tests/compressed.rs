@@ -8,6 +8,7 @@ mod draco_writer;
 
 use bake_importer::{load, Scene};
 use bake_testkit::{fixture, skip, tools_dir};
+use draco_writer::float_attribute;
 use serde_json::{json, Value};
 use std::path::Path;
 use std::process::Command;
@@ -280,8 +281,7 @@ fn mutated_draco_streams_fail_without_panicking() {
 #[test]
 fn draco_texture_coordinates_come_from_the_attribute_the_extension_names() {
     use draco_core::{
-        DataType, EncoderBuffer, EncoderOptions, GeometryAttributeType, Mesh, MeshEncoder,
-        PointAttribute, PointIndex,
+        EncoderBuffer, EncoderOptions, GeometryAttributeType, Mesh, MeshEncoder, PointIndex,
     };
     let dir = tempfile::tempdir().unwrap();
     let b = textured_square("KHR_texture_basisu", true);
@@ -291,33 +291,8 @@ fn draco_texture_coordinates_come_from_the_attribute_the_extension_names() {
     // 1 in the stream, with 12-bit texture coordinates.
     let square = [[0f32, 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]];
     let mut mesh = Mesh::new();
-    let mut uv = PointAttribute::new();
-    uv.init(
-        GeometryAttributeType::TexCoord,
-        2,
-        DataType::Float32,
-        false,
-        4,
-    );
-    for (i, t) in UVS.iter().enumerate() {
-        uv.buffer_mut()
-            .write(i * 8, &t.map(f32::to_le_bytes).concat());
-    }
-    let uv_id = mesh.add_attribute(uv);
-    let mut position = PointAttribute::new();
-    position.init(
-        GeometryAttributeType::Position,
-        3,
-        DataType::Float32,
-        false,
-        4,
-    );
-    for (i, p) in square.iter().enumerate() {
-        position
-            .buffer_mut()
-            .write(i * 12, &p.map(f32::to_le_bytes).concat());
-    }
-    let position_id = mesh.add_attribute(position);
+    let uv_id = mesh.add_attribute(float_attribute(GeometryAttributeType::TexCoord, &UVS));
+    let position_id = mesh.add_attribute(float_attribute(GeometryAttributeType::Position, &square));
     for t in [[0, 1, 2], [0, 2, 3]] {
         mesh.add_face(t.map(PointIndex));
     }
@@ -422,27 +397,11 @@ fn reference_encoder_draco_files_decode_to_the_uncompressed_polygons() {
 #[test]
 fn the_draco_fuzz_harness_reaches_the_decoder() {
     use draco_core::{
-        DataType, EncoderBuffer, EncoderOptions, GeometryAttributeType, Mesh, MeshEncoder,
-        PointAttribute, PointIndex,
+        EncoderBuffer, EncoderOptions, GeometryAttributeType, Mesh, MeshEncoder, PointIndex,
     };
     let mut mesh = Mesh::new();
-    let mut position = PointAttribute::new();
-    position.init(
-        GeometryAttributeType::Position,
-        3,
-        DataType::Float32,
-        false,
-        3,
-    );
-    for (i, p) in [[0f32, 0., 0.], [1., 0., 0.], [0., 1., 0.]]
-        .iter()
-        .enumerate()
-    {
-        position
-            .buffer_mut()
-            .write(i * 12, &p.map(f32::to_le_bytes).concat());
-    }
-    let id = mesh.add_attribute(position);
+    let triangle = [[0f32, 0., 0.], [1., 0., 0.], [0., 1., 0.]];
+    let id = mesh.add_attribute(float_attribute(GeometryAttributeType::Position, &triangle));
     mesh.add_face([0, 1, 2].map(PointIndex));
     let mut options = EncoderOptions::new();
     options.set_attribute_int(id, "quantization_bits", 14);

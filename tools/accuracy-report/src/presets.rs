@@ -140,47 +140,37 @@ pub fn sweep(root: &Path, out: &Path, quick: bool) -> Result<Vec<PresetRow>> {
     let reference_mesh = mesher::mesh(&cube.polygons, Subdivision::Count(48))?;
     let reference_b = measure::closed_form_solution(&cube, &reference_mesh)?;
     let reference = Field::new(&reference_mesh, &reference_b);
-    let cube_error = |b: &bake_core::Bake| {
-        measure::displayed_errors(&Field::new(&b.mesh, &b.solution.b), &reference, &cube).rms
-    };
+
     let diagonals: &[f64] = if quick {
         &[8.0, 16.0]
     } else {
         &[6.0, 8.0, 12.0, 16.0, 24.0, 32.0, 48.0, 64.0]
     };
-    scene_rows(&cube, diagonals, &cube_error)?;
+    scene_rows(&cube, diagonals, &displayed_rms(&reference, &cube))?;
     if quick {
         return Ok(rows);
     }
 
     let cornell = Scene::load("cornell", &root.join("fixtures/cornell.gltf"))?;
-    eprintln!("presets cornell: reference ...");
-    let settings =
-        bake_core::Settings::resolve(&reference_request(&cornell, 40.0), &cornell.polygons)?;
-    let reference_bake = bake_core::run(&cornell.source, &settings, &bake_core::Silent)?;
+    let reference_bake = converged(&cornell, 40.0)?;
     let reference = Field::new(&reference_bake.mesh, &reference_bake.solution.b);
-    let cornell_error = |b: &bake_core::Bake| {
-        measure::displayed_errors(&Field::new(&b.mesh, &b.solution.b), &reference, &cornell).rms
-    };
     scene_rows(
         &cornell,
         &[6.0, 8.0, 12.0, 16.0, 24.0, 32.0],
-        &cornell_error,
+        &displayed_rms(&reference, &cornell),
     )?;
 
     // small_room.obj (issue 31's repro of a small scene with occluders), when ../shared has it.
     let path = root.join("../shared/corpus/repro/small_room.obj");
     if path.exists() {
         let room = Scene::load("small_room", &path)?;
-        eprintln!("presets small_room: reference ...");
-        let settings =
-            bake_core::Settings::resolve(&reference_request(&room, 64.0), &room.polygons)?;
-        let reference_bake = bake_core::run(&room.source, &settings, &bake_core::Silent)?;
+        let reference_bake = converged(&room, 64.0)?;
         let reference = Field::new(&reference_bake.mesh, &reference_bake.solution.b);
-        let room_error = |b: &bake_core::Bake| {
-            measure::displayed_errors(&Field::new(&b.mesh, &b.solution.b), &reference, &room).rms
-        };
-        scene_rows(&room, &[8.0, 12.0, 16.0, 24.0, 32.0], &room_error)?;
+        scene_rows(
+            &room,
+            &[8.0, 12.0, 16.0, 24.0, 32.0],
+            &displayed_rms(&reference, &room),
+        )?;
     } else {
         eprintln!("presets small_room: skipped ({} not found)", path.display());
     }
@@ -207,10 +197,11 @@ fn previous_default(polygons: &[importer::Polygon]) -> bake_core::Request {
     }
 }
 
-/// A converged reference of a scene with occluders: elements of diagonal / `per_diagonal`, not
-/// refined, hierarchical at link tolerance 1e-3 with 121 rays per link.
-fn reference_request(scene: &Scene, per_diagonal: f64) -> bake_core::Request {
-    bake_core::Request {
+/// A converged reference bake of a scene with occluders: elements of diagonal /
+/// `per_diagonal`, not refined, hierarchical at link tolerance 1e-3 with 121 rays per link.
+fn converged(scene: &Scene, per_diagonal: f64) -> Result<bake_core::Bake> {
+    eprintln!("presets {}: reference ...", scene.name);
+    let request = bake_core::Request {
         subdivision: Some(Subdivision::MaxSize(mesher::max_element_size(
             &scene.polygons,
             per_diagonal,
@@ -220,7 +211,21 @@ fn reference_request(scene: &Scene, per_diagonal: f64) -> bake_core::Request {
         link_tolerance: Some(1e-3),
         visibility_samples: Some(121),
         ..bake_core::Request::default()
-    }
+    };
+    let settings = bake_core::Settings::resolve(&request, &scene.polygons)?;
+    Ok(bake_core::run(
+        &scene.source,
+        &settings,
+        &bake_core::Silent,
+    )?)
+}
+
+/// A bake's RMS error on the displayed field against `reference` ([`measure::displayed_errors`]).
+fn displayed_rms<'a>(
+    reference: &'a Field<'a>,
+    scene: &'a Scene,
+) -> impl Fn(&bake_core::Bake) -> f64 + 'a {
+    move |b| measure::displayed_errors(&Field::new(&b.mesh, &b.solution.b), reference, scene).rms
 }
 
 /// The uniform front's error at `time`: log–log interpolation between the uniform points

@@ -7,6 +7,29 @@
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
+/// A Float32 Draco point attribute of `kind` holding `values`, one `N`-component value per
+/// point (the encoder's input for positions, normals and texture coordinates).
+pub fn float_attribute<const N: usize>(
+    kind: draco_core::GeometryAttributeType,
+    values: &[[f32; N]],
+) -> draco_core::PointAttribute {
+    let mut attribute = draco_core::PointAttribute::new();
+    let components = u8::try_from(N).expect("at most 255 components");
+    attribute.init(
+        kind,
+        components,
+        draco_core::DataType::Float32,
+        false,
+        values.len(),
+    );
+    for (i, v) in values.iter().enumerate() {
+        attribute
+            .buffer_mut()
+            .write(i * 4 * N, &v.map(f32::to_le_bytes).concat());
+    }
+    attribute
+}
+
 /// Writes the glTF file `source` (geometry in external .bin files) into `dir` with every
 /// triangle primitive's POSITION and indices Draco-compressed (positions quantised to
 /// `bits` bits; `speed` 10 is sequential coding, lower speeds edgebreaker). The Draco
@@ -14,8 +37,7 @@ use std::path::{Path, PathBuf};
 /// that went by attribute order would read the normals.
 pub fn write_draco(source: &Path, dir: &Path, bits: i32, speed: i32) -> PathBuf {
     use draco_core::{
-        DataType, EncoderBuffer, EncoderOptions, GeometryAttributeType, Mesh, MeshEncoder,
-        PointAttribute, PointIndex,
+        EncoderBuffer, EncoderOptions, GeometryAttributeType, Mesh, MeshEncoder, PointIndex,
     };
     let (document, buffers, _) = gltf::import(source).expect("fixture loads");
     let mut json: Value =
@@ -36,34 +58,11 @@ pub fn write_draco(source: &Path, dir: &Path, bits: i32, speed: i32) -> PathBuf 
             };
             let n = positions.len();
             let mut draco = Mesh::new();
-            let mut normal = PointAttribute::new();
-            normal.init(
-                GeometryAttributeType::Normal,
-                3,
-                DataType::Float32,
-                false,
-                n,
-            );
-            for i in 0..n {
-                normal
-                    .buffer_mut()
-                    .write(i * 12, &[0.0f32, 0.0, 1.0].map(f32::to_le_bytes).concat());
-            }
-            let normal_id = draco.add_attribute(normal);
-            let mut position = PointAttribute::new();
-            position.init(
-                GeometryAttributeType::Position,
-                3,
-                DataType::Float32,
-                false,
-                n,
-            );
-            for (i, p) in positions.iter().enumerate() {
-                position
-                    .buffer_mut()
-                    .write(i * 12, &p.map(f32::to_le_bytes).concat());
-            }
-            let position_id = draco.add_attribute(position);
+            let normals = vec![[0.0f32, 0.0, 1.0]; n];
+            let normal_id =
+                draco.add_attribute(float_attribute(GeometryAttributeType::Normal, &normals));
+            let position_id =
+                draco.add_attribute(float_attribute(GeometryAttributeType::Position, &positions));
             for t in indices.chunks_exact(3) {
                 draco.add_face([PointIndex(t[0]), PointIndex(t[1]), PointIndex(t[2])]);
             }
