@@ -223,10 +223,12 @@ pub struct Cli {
     /// 1991): each polygon is a tree over its elements and light moves along links between the
     /// coarsest node pairs whose estimated error is below the link tolerance --max-error
     /// derives (or --link-tolerance; links grow about
-    /// linearly with n). `auto`: dense up to the measured crossover, hierarchical above it and
-    /// on small scenes where some polygon can come between others (scenes up to 4000 elements
-    /// are refined by default, to twice their grid and at least 4000 elements: more accurate
-    /// than dense at 2000, in a tenth of the time); the report says which and why.
+    /// linearly with n). `auto`: the cheaper by a cost model measured on this project's scenes
+    /// (pairs and shadow rays against links, each at the elements its refinement would reach;
+    /// dense also where it costs under 0.1 s: it is exact), dense for bright scenes up to 8000
+    /// elements; scenes up to 4000 elements on the hierarchy are refined by default, to twice
+    /// their grid and at least 4000 elements. The report's `transport.reason` gives both
+    /// estimates.
     #[arg(long, value_enum, default_value_t = TransportKind::Auto, help_heading = "Expert")]
     pub transport: TransportKind,
     /// How to solve (I − ρF) b = e exactly: LU or GMRES.

@@ -144,22 +144,45 @@ fn hierarchical_bakes_are_bit_identical_with_one_and_two_threads() {
 }
 
 #[test]
-fn auto_picks_the_transport_by_element_count_and_occlusion_and_says_why() {
-    // A small convex scene (nothing can occlude): dense, exact and fast.
-    let small = run("cube.gltf", 0.1, TransportKind::Auto, None);
-    assert_eq!(small.plan.transport().kind, TransportKind::Dense);
-    assert!(small.plan.transport().reason.contains("crossover"));
+fn auto_picks_the_transport_by_cost_and_says_why() {
+    // A tiny convex scene (nothing can occlude), not refined: dense, exact and affordable.
+    let tiny = run("cube.gltf", 0.25, TransportKind::Auto, None);
+    assert_eq!(tiny.plan.transport().kind, TransportKind::Dense);
+    let reason = &tiny.plan.transport().reason;
+    assert!(reason.contains("estimated cost"), "{reason}");
+    assert!(reason.contains("exact"), "{reason}");
+    // The same cube refined by default: the dense transport's pairs at its 2 000-element
+    // budget cost more than the hierarchy's links at its 4 000, which then refines further.
+    let small = {
+        let scene = importer::load(&fixture("cube.gltf")).expect("load the fixture");
+        let request = Request {
+            subdivision: Some(Subdivision::MaxSize(0.1)),
+            ..Request::default()
+        };
+        let settings = Settings::resolve(&request, &scene.polygons).expect("settings");
+        bake_core::run(&scene, &settings, &bake_core::Silent).expect("bake")
+    };
+    let choice = small.plan.transport();
+    assert_eq!(
+        choice.kind,
+        TransportKind::Hierarchical,
+        "{}",
+        choice.reason
+    );
+    assert!(choice.reason.contains("(refined)"), "{}", choice.reason);
     assert!(small.plan.refines_by_default());
-    let n = small.mesh.elements.len();
-    assert!(n <= bake_core::DENSE_CROSSOVER, "{n}");
+    assert!(small.mesh.elements.len() > bake_core::DENSE_CROSSOVER);
     // A small scene with occluders: the dense transport's rays per element pair would cost
     // more than the hierarchy's per link, which then refines by default, further.
     let occluded = run("cornell.gltf", 60.0, TransportKind::Auto, None);
-    assert!(occluded.mesh.elements.len() <= bake_core::DENSE_CROSSOVER);
     let choice = occluded.plan.transport();
     assert_eq!(choice.kind, TransportKind::Hierarchical);
     assert!(choice.reason.contains("come between"), "{}", choice.reason);
     assert!(occluded.plan.refines_by_default());
+    // Refinement off, the cube's 600 elements: the dense transport's 0.17 s against the
+    // hierarchy's 0.03 s.
+    let uniform = run("cube.gltf", 0.1, TransportKind::Auto, None);
+    assert_eq!(uniform.plan.transport().kind, TransportKind::Hierarchical);
     assert_eq!(
         occluded.plan.element_budget(occluded.mesh.elements.len()),
         bake_core::OCCLUDED_MAX_ELEMENTS
@@ -167,7 +190,6 @@ fn auto_picks_the_transport_by_element_count_and_occlusion_and_says_why() {
     let large = run("cornell.gltf", 25.0, TransportKind::Auto, None);
     assert!(large.mesh.elements.len() > bake_core::DENSE_CROSSOVER);
     assert_eq!(large.plan.transport().kind, TransportKind::Hierarchical);
-    assert!(large.plan.transport().reason.contains("crossover"));
 }
 
 #[test]
@@ -215,7 +237,13 @@ fn the_cli_reports_the_transport_and_refuses_direct_with_hierarchical() {
 #[test]
 #[ignore = "measurement table: dense vs hierarchical at the acceptance sizes (minutes, release)"]
 fn acceptance_table() {
-    for (name, size) in [("cornell.gltf", 27.0), ("two-rooms.gltf", 0.2)] {
+    // BAKE_QUICK: coarser meshes (seconds instead of minutes).
+    let scenes = if std::env::var_os("BAKE_QUICK").is_some() {
+        [("cornell.gltf", 60.0), ("two-rooms.gltf", 0.4)]
+    } else {
+        [("cornell.gltf", 27.0), ("two-rooms.gltf", 0.2)]
+    };
+    for (name, size) in scenes {
         let start = std::time::Instant::now();
         let dense = run(name, size, TransportKind::Dense, None);
         println!("{name}: dense {:.2} s", start.elapsed().as_secs_f64());
@@ -364,18 +392,9 @@ fn a_scene_without_light_builds_no_transport() {
 /// and the median of |h − d| / estimate.
 fn estimate_against_dense(dense: &Bake, h: &Bake) -> Vec<(&'static str, f64, f64)> {
     type Part = fn(&bake_core::error::Parts, usize) -> f64;
-    let parts: [(&'static str, Part); 6] = [
+    let parts: [(&'static str, Part); 4] = [
         ("total", |p, c| p.total()[c]),
-        ("transport", |p, c| p.total()[c] - p.discretisation[c]),
-        ("total (quadrature)", |p, c| {
-            (p.discretisation[c].powi(2)
-                + p.form_factors[c].powi(2)
-                + p.visibility[c].powi(2)
-                + p.solver[c].powi(2)
-                + p.links[c].powi(2))
-            .sqrt()
-        }),
-        ("transport (quadrature)", |p, c| {
+        ("transport", |p, c| {
             (p.form_factors[c].powi(2)
                 + p.visibility[c].powi(2)
                 + p.solver[c].powi(2)
@@ -406,8 +425,11 @@ fn estimate_against_dense(dense: &Bake, h: &Bake) -> Vec<(&'static str, f64, f64
 }
 
 /// The hierarchical bake's error estimate covers its difference from the dense solve of the
-/// same mesh (issue 31): the whole estimate bounds ≥ 90% of element-bands, and its links part
-/// alone does too while staying informative (median difference / estimate ≥ 0.05).
+/// same mesh (issue 31): the part the transports differ in (all but discretisation, which both
+/// share) bounds ≥ 90% of element-bands and is informative, median difference / estimate ≥
+/// 0.1 (measured 98.7% and 0.109 here; at 27 mm, 4 243 elements, 98.6% and 0.108, and on the
+/// two rooms 94.9% and 0.213: `error_estimate_against_dense_table`); the whole estimate
+/// bounds ≥ 90% too.
 #[test]
 fn the_error_estimate_covers_the_difference_from_dense() {
     let dense = run("cornell.gltf", 60.0, TransportKind::Dense, None);
@@ -417,18 +439,24 @@ fn the_error_estimate_covers_the_difference_from_dense() {
     let row = |name: &str| table.iter().find(|r| r.0 == name).copied().expect("row");
     let (_, bounded, _) = row("total");
     assert!(bounded >= 0.9, "total bounds {bounded}");
-    let (_, bounded, median) = row("links");
-    assert!(bounded >= 0.9, "links bound {bounded}");
+    let (_, bounded, median) = row("transport");
+    assert!(bounded >= 0.9, "the transport part bounds {bounded}");
     assert!(
-        median >= 0.05,
-        "links: median difference / estimate {median}"
+        median >= 0.1,
+        "transport part: median difference / estimate {median}"
     );
 }
 
 #[test]
 #[ignore = "measurement: dense references of ~4 000 elements (minutes, release)"]
 fn error_estimate_against_dense_table() {
-    for (name, size) in [("cornell.gltf", 27.0), ("two-rooms.gltf", 0.2)] {
+    // BAKE_QUICK: coarser meshes (seconds instead of minutes).
+    let scenes = if std::env::var_os("BAKE_QUICK").is_some() {
+        [("cornell.gltf", 60.0), ("two-rooms.gltf", 0.4)]
+    } else {
+        [("cornell.gltf", 27.0), ("two-rooms.gltf", 0.2)]
+    };
+    for (name, size) in scenes {
         let dense = run(name, size, TransportKind::Dense, None);
         let h = run(name, size, TransportKind::Hierarchical, None);
         let (rms, worst) = differences(&dense, &h);

@@ -262,24 +262,34 @@ fn closed_box_lit_by_a_point_light_balances_energy() {
             json!({ "translation": [0.6, 1.1, 0.3] }),
         )],
     );
-    let report = bake_json(dir.path(), "in", &doc, &[]);
-    let energy = report.energy.as_ref().expect("energy");
-    for c in 0..3 {
-        assert!(energy.imbalance[c] < 1e-9, "band {c}: {energy:?}");
-        // A closed box: everything that enters is absorbed, and the light delivers its whole
-        // flux 4π I / π = 4 I per band (in b × area).
-        let flux = 4.0 * 50.0 * f64::from([1.0f32, 0.8, 0.6][c]);
-        assert!(
-            (energy.delivered[c] - flux).abs() < 1e-9 * flux,
-            "{energy:?}"
-        );
-        // Nothing escapes but the default estimator's row-sum error (auto, 1e-3 per pair).
-        assert!(energy.escaped[c].abs() < 1e-5 * flux, "{energy:?}");
+    // The dense transport (exact form factors, rows scaled to the closed scene's 1), then the
+    // default, which `auto` gives the hierarchy (cheaper, refined to 4 000 elements).
+    for (args, escape) in [(&["--transport", "dense"][..], 1e-5), (&[][..], 1e-3)] {
+        let report = bake_json(dir.path(), "in", &doc, args);
+        let energy = report.energy.as_ref().expect("energy");
+        for c in 0..3 {
+            assert!(energy.imbalance[c] < 1e-9, "band {c}: {energy:?}");
+            // A closed box: everything that enters is absorbed, and the light delivers its
+            // whole flux 4π I / π = 4 I per band (in b × area).
+            let flux = 4.0 * 50.0 * f64::from([1.0f32, 0.8, 0.6][c]);
+            assert!(
+                (energy.delivered[c] - flux).abs() < 1e-9 * flux,
+                "{energy:?}"
+            );
+            // Nothing escapes but the estimator's row-sum error (auto, 1e-3 per pair), which
+            // the dense transport scales away; the hierarchy's links keep theirs (measured
+            // 2.5e-4 of the flux at --max-error 1e-2; issue 31 holds the escape of the two
+            // transports within 0.3% of each other).
+            assert!(
+                energy.escaped[c].abs() < escape * flux,
+                "{args:?}: {energy:?}"
+            );
+        }
+        assert!(report
+            .elements
+            .iter()
+            .all(|e| e.b.iter().all(|v| v.is_finite() && *v > 0.0)));
     }
-    assert!(report
-        .elements
-        .iter()
-        .all(|e| e.b.iter().all(|v| v.is_finite() && *v > 0.0)));
 }
 
 #[test]

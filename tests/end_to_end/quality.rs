@@ -58,12 +58,12 @@ fn presets_set_their_knobs_and_order_the_work() {
             assert_eq!(accuracy.ff_tolerance, Some(tau));
             assert!(r.counts.kernel_evaluations > last_evaluations, "{quality}");
         } else {
-            // `high` puts 2 166 elements on the cube, above the crossover: linear links need
-            // fewer kernel evaluations than `normal`'s every pair. Their tolerance comes from
-            // the target: ε = E B̄ / a, a = B̄ / Ē the amplification the last linking pass
-            // measured (about 1 / (1 − ρ̄) in the closed cube: 2.16), so the relative link
-            // tolerance times a gives E back.
-            assert_eq!(quality, "high");
+            // `normal` refines its 600 elements and `high` has 2 166: by the cost model the
+            // hierarchy is the cheaper for both (crates/bake/src/cost.rs), `draft`'s 150 stay
+            // dense. The links' tolerance comes from the target: ε = E B̄ / a, a = B̄ / Ē the
+            // amplification the last linking pass measured (about 1 / (1 − ρ̄) in the closed
+            // cube: 2.16), so the relative link tolerance times a gives E back.
+            assert_ne!(quality, "draft");
             assert_eq!(r.transport.kind.name(), "hierarchical");
             assert_eq!(o["link_tolerance"], serde_json::Value::Null);
             assert_eq!(o["link_tolerance_from_max_error"], true);
@@ -74,7 +74,8 @@ fn presets_set_their_knobs_and_order_the_work() {
             assert!((2.0..2.4).contains(&a), "amplification {a}");
             assert!((t * a / max_error - 1.0).abs() < 1e-9, "{t} × {a}");
             // The hierarchy's links keep the preset's per-pair tolerance.
-            assert_eq!(o["ff_tolerance"], 1e-4);
+            let preset_tolerance = if quality == "high" { 1e-4 } else { 1e-3 };
+            assert_eq!(o["ff_tolerance"], preset_tolerance);
             assert_eq!(o["ff_tolerance_from_max_error"], false);
             assert!(r.counts.links > 0);
         }

@@ -15,6 +15,7 @@
 
 pub mod accuracy;
 pub mod advice;
+pub mod cost;
 pub mod error;
 pub mod escape;
 mod plan;
@@ -259,9 +260,9 @@ pub fn peak_rss_mib_now() -> Option<f64> {
 /// exactly).
 pub const MAX_BOUNCES: u32 = 10_000;
 
-/// Scenes up to this many elements get the dense transport under `--transport auto`, unless
-/// some polygon can come between two others (then its shadow rays per element pair cost more
-/// than the hierarchy's per link: [`OCCLUDED_MAX_ELEMENTS`]).
+/// The dense transport's default element budget ([`DEFAULT_MAX_ELEMENTS`]), and the largest
+/// small scene with occluders whose hierarchical bake falls back to the dense transport when
+/// it has no solution. (`--transport auto` chooses by [`cost`], not by this count.)
 pub const DENSE_CROSSOVER: usize = 2_000;
 
 /// The least default `--max-elements` of a small scene on the hierarchical transport under
@@ -273,9 +274,9 @@ pub const DENSE_CROSSOVER: usize = 2_000;
 pub const OCCLUDED_MAX_ELEMENTS: u64 = 4_000;
 
 /// Scenes of up to this many elements on the hierarchical transport under `auto` are refined
-/// by default (up to twice their grid's elements, at least [`OCCLUDED_MAX_ELEMENTS`]; at most
-/// [`refine::MAX_HIERARCHICAL_PASSES`] solves): each pass links the scene again, which a small
-/// scene affords and a walkthrough does not. Measured on the paper's cube at `--quality high`
+/// by default (up to twice their grid's elements, at least [`OCCLUDED_MAX_ELEMENTS`], as many
+/// solves as on the dense transport, [`refine::MAX_PASSES`]): each pass links the scene again,
+/// which a small scene affords and a walkthrough does not. Measured on the paper's cube at `--quality high`
 /// (2 166 elements) and the Cornell box (3 409): refined, they are more accurate than uniform
 /// grids at the same time (issue 31, docs/accuracy.md).
 pub const SMALL_SCENE_ELEMENTS: usize = 4_000;
@@ -532,12 +533,16 @@ fn scene_summary(
     elements: u64,
 ) -> Result<SceneSummary, BakeError> {
     // Only a scene the dense transport could take needs to know whether it has occluders
-    // (P ≤ n ≤ the crossover: the pair test stops at the first occludable pair).
-    let occluded = elements <= DENSE_CROSSOVER as u64
+    // (the pair test stops at the first occludable pair).
+    let occluded = elements <= DENSE_AUTO_MAX as u64
         && settings.transport == TransportKind::Auto
         && scene_occluded(scene)?;
+    // The grids' elements, which the transport is chosen for (a refined mesh has more).
+    let grid_elements = mesher::element_count(&scene.polygons, settings.subdivision)?;
     Ok(SceneSummary {
         elements,
+        grid_elements,
+        lights: !scene.lights.is_empty(),
         rho_bound: scene_rho_bound(scene, settings.max_reflectance),
         bands: scene_bands(scene),
         occluded,
@@ -678,10 +683,15 @@ fn estimate_error(p: &transports::Problem, done: &transports::Transported) -> Ve
         }),
         sampled: &sampled,
         samples: done.samples,
+        delivered: &done.delivered,
         link_error: done
             .link_error
             .as_ref()
-            .map(|[local, carried]| error::LinkMisses { local, carried }),
+            .map(|[local, carried, visibility]| error::LinkMisses {
+                local,
+                carried,
+                visibility,
+            }),
     })
 }
 
@@ -1000,6 +1010,10 @@ fn finish<T: Transport>(
 /// elements whose hierarchy's link tolerance, so amplified, exceeds `--max-error` get the
 /// dense transport anyway (an 8 000² matrix is 512 MB; the memory guard still applies).
 pub const BRIGHT_DENSE_MAX: usize = 8_000;
+
+/// The largest scene `--transport auto` costs the dense transport for ([`cost`]): above it the
+/// hierarchy is always the cheaper by far (and the matrix alone passes 512 MB).
+pub const DENSE_AUTO_MAX: usize = BRIGHT_DENSE_MAX;
 
 /// A scene is bright when its a-priori condition bound `(1 + ρ_max)/(1 − ρ_max)` reaches this
 /// (ρ_max ≥ 0.98): the hierarchy's link errors, measured at ρ ≤ 0.9 in docs/accuracy.md, are

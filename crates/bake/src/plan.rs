@@ -6,10 +6,11 @@
 //!
 //! A refining bake makes one plan per solve (the element count changes).
 
+use crate::cost::{self, Costs};
 use crate::{
     accuracy, check_memory, BakeError, Settings, Solve, TransportChoice, TransportKind,
-    BRIGHT_AMPLIFICATION, BRIGHT_DENSE_MAX, DENSE_CROSSOVER, LINK_PASSES, OCCLUDED_MAX_ELEMENTS,
-    ROW_SUM_WARNING_MARGIN, SMALL_SCENE_ELEMENTS,
+    BRIGHT_AMPLIFICATION, BRIGHT_DENSE_MAX, DENSE_AUTO_MAX, DENSE_CROSSOVER, LINK_PASSES,
+    OCCLUDED_MAX_ELEMENTS, ROW_SUM_WARNING_MARGIN, SMALL_SCENE_ELEMENTS,
 };
 use form_factor::Estimator;
 use transport::{DenseOptions, HierarchicalOptions};
@@ -19,13 +20,20 @@ use transport::{DenseOptions, HierarchicalOptions};
 pub struct SceneSummary {
     /// Elements the mesh will have.
     pub elements: u64,
+    /// Elements of the mesher's grids (before any refinement): the transport is chosen for
+    /// them, so that every solve of a refining bake gets the same one.
+    pub grid_elements: u64,
+    /// Whether the scene has punctual lights (whose shadow edges refinement follows even
+    /// where it does not refine smooth light).
+    pub lights: bool,
     /// The largest reflectance any surface can have (textures included), after
     /// `--max-reflectance`.
     pub rho_bound: f64,
     /// Distinct reflectance bands (1 for a grey scene): LU copies a direct solve needs.
     pub bands: usize,
     /// Whether some polygon can come between two others (asked only of scenes the dense
-    /// transport could take; false otherwise).
+    /// transport could take under `auto`, at most [`DENSE_AUTO_MAX`] elements; false
+    /// otherwise).
     pub occluded: bool,
 }
 
@@ -55,7 +63,7 @@ impl Plan {
     ) -> Result<Plan, BakeError> {
         let rho_bound = scene.rho_bound;
         let n = usize::try_from(scene.elements).unwrap_or(usize::MAX);
-        let transport = choose_transport(settings, n, rho_bound, scene.occluded);
+        let transport = choose_transport(settings, scene);
         let small_occluded = transport.kind == TransportKind::Hierarchical
             && settings.transport == TransportKind::Auto
             && scene.occluded
@@ -115,6 +123,12 @@ impl Plan {
     /// each refining solve of a large scene would link it again).
     pub fn refines_by_default(&self) -> bool {
         self.transport.kind != TransportKind::Hierarchical || self.small
+    }
+
+    /// Whether this is the hierarchy `auto` chose for a scene of at most
+    /// [`SMALL_SCENE_ELEMENTS`] (refined by default, as far as the dense transport refines).
+    pub fn small(&self) -> bool {
+        self.small
     }
 
     /// Whether this is the hierarchy `auto` chose for a small scene with occluders.
@@ -234,14 +248,45 @@ impl LinkRisk {
     }
 }
 
-/// Which transport `settings` asks for on a scene of `n` elements whose reflectances are at
-/// most `rho_bound` (`occluded`: some polygon can come between two others), and why.
-fn choose_transport(
-    settings: &Settings,
-    n: usize,
-    rho_bound: f64,
-    occluded: bool,
-) -> TransportChoice {
+/// What each transport would cost `scene` under `settings` ([`crate::cost`]): the dense one
+/// refined to its element budget, the hierarchy refined to its own where `auto` would refine
+/// it (a scene of at most [`SMALL_SCENE_ELEMENTS`]), each from the grids' elements, when
+/// refinement is on and has something to follow (smooth light, or lights' shadow edges).
+pub fn costs(settings: &Settings, scene: &SceneSummary) -> Costs {
+    let grid = scene.grid_elements;
+    let grows = settings.refine
+        && !settings.save_links
+        && settings.load_links.is_none()
+        && (settings.refine_smooth() || scene.lights);
+    let dense_budget = settings.element_budget(grid as usize, false);
+    let dense_refines = grows && dense_budget > grid;
+    let small = grid <= SMALL_SCENE_ELEMENTS as u64;
+    let hierarchical_budget = match settings.max_elements {
+        None if small => OCCLUDED_MAX_ELEMENTS.max(2 * grid),
+        _ => settings.element_budget(grid as usize, true),
+    };
+    let hierarchical_refines = grows
+        && (small || settings.refine_requested || settings.max_elements.is_some())
+        && hierarchical_budget > grid;
+    Costs::estimate(&cost::Inputs {
+        dense_elements: if dense_refines { dense_budget } else { grid },
+        dense_refines,
+        hierarchical_elements: if hierarchical_refines {
+            hierarchical_budget
+        } else {
+            grid
+        },
+        hierarchical_refines,
+        occluded: scene.occluded,
+        samples: settings.visibility_samples,
+        max_error: settings.max_error,
+    })
+}
+
+/// Which transport `settings` asks for on `scene`, and why.
+fn choose_transport(settings: &Settings, scene: &SceneSummary) -> TransportChoice {
+    let n = usize::try_from(scene.elements).unwrap_or(usize::MAX);
+    let rho_bound = scene.rho_bound;
     let risk = LinkRisk::of(settings, rho_bound);
     let (amplification, amplified, bright) = (risk.amplification, risk.amplified, risk.bright);
     if let Some(path) = &settings.load_links {
@@ -267,42 +312,52 @@ fn choose_transport(
             kind: TransportKind::Dense,
             reason: "--solver direct needs the dense transport".into(),
         },
-        TransportKind::Auto if n > DENSE_CROSSOVER && n <= BRIGHT_DENSE_MAX && bright => {
+        TransportKind::Auto if n <= BRIGHT_DENSE_MAX && bright => TransportChoice {
+            kind: TransportKind::Dense,
+            reason: format!(
+                "reflectances up to {rho_bound} amplify errors up to {:.0}×: the hierarchy's \
+                 link tolerance ({}) could cost b {amplified:.1e}, more than --max-error {:e}; \
+                 the dense transport meets it (up to {BRIGHT_DENSE_MAX} elements)",
+                amplification,
+                risk.describe(),
+                settings.max_error
+            ),
+        },
+        TransportKind::Auto if n > DENSE_AUTO_MAX => TransportChoice {
+            kind: TransportKind::Hierarchical,
+            reason: format!(
+                "{n} elements, more than the dense transport takes under auto \
+                 ({DENSE_AUTO_MAX}): the hierarchical transport's links grow about linearly \
+                 with the elements, the dense one's pairs quadratically"
+            ),
+        },
+        TransportKind::Auto => {
+            let costs = costs(settings, scene);
+            let kind = costs.cheaper();
+            let why = match kind {
+                TransportKind::Dense if costs.dense.seconds > costs.hierarchical.seconds => {
+                    format!(
+                        "both cheap (under {} s): the dense transport is exact",
+                        cost::DENSE_AFFORDABLE_S
+                    )
+                }
+                TransportKind::Dense => "the dense transport is cheaper, and exact".into(),
+                _ if scene.occluded => "the hierarchy is cheaper: the dense transport would \
+                     cast shadow rays for every element pair some polygon can come between, \
+                     the hierarchy only per link"
+                    .into(),
+                _ => "the hierarchy is cheaper: its links grow about linearly with the \
+                     elements, the dense transport's pairs quadratically"
+                    .into(),
+            };
             TransportChoice {
-                kind: TransportKind::Dense,
+                kind,
                 reason: format!(
-                    "{n} elements, more than the crossover of {DENSE_CROSSOVER}, but reflectances \
-                     up to {rho_bound} amplify errors up to {:.0}×: the hierarchy's link \
-                     tolerance ({}) could cost b {amplified:.1e}, more than --max-error {:e}; \
-                     the dense transport meets it (up to {BRIGHT_DENSE_MAX} elements)",
-                    amplification,
-                    risk.describe(),
-                    settings.max_error
+                    "{} elements on the grids, {}: {why}",
+                    scene.grid_elements,
+                    costs.describe()
                 ),
             }
         }
-        TransportKind::Auto if n <= DENSE_CROSSOVER && occluded && !bright => TransportChoice {
-            kind: TransportKind::Hierarchical,
-            reason: format!(
-                "{n} elements, at most the crossover of {DENSE_CROSSOVER}, but some polygon can \
-                 come between others: the dense transport would cast shadow rays for every \
-                 element pair that may be hidden, the hierarchy only per link"
-            ),
-        },
-        TransportKind::Auto if n <= DENSE_CROSSOVER => TransportChoice {
-            kind: TransportKind::Dense,
-            reason: format!(
-                "{n} elements, at most the crossover of {DENSE_CROSSOVER}: the dense transport \
-                 is exact and about as fast"
-            ),
-        },
-        TransportKind::Auto => TransportChoice {
-            kind: TransportKind::Hierarchical,
-            reason: format!(
-                "{n} elements, more than the crossover of {DENSE_CROSSOVER}: the hierarchical \
-                 transport's links grow about linearly with the elements, the dense one's pairs \
-                 quadratically"
-            ),
-        },
     }
 }

@@ -18,7 +18,8 @@
 //! below the grid, and the scene is solved again on the new mesh (either transport: the
 //! hierarchical one's trees continue below the grid elements into their quarters; it refines
 //! only when asked, `--refine on` or `--max-elements`, and at most [`MAX_HIERARCHICAL_PASSES`]
-//! solves, since each links the whole scene again). This
+//! solves, since each links the whole scene again — except a small scene `auto` gave it,
+//! which refines by default and as far as on the dense transport). This
 //! repeats until nothing is marked, the budget is reached (a warning names where, when the user
 //! asked for a target: [`crate::Settings::warn_refinement`]), or
 //! [`MAX_PASSES`] solves ran. Where the light is smooth nothing is marked. Finally each vertex
@@ -37,7 +38,8 @@ pub const MAX_LEVELS: u8 = 5;
 pub const MAX_PASSES: u32 = 8;
 
 /// The most solves of a refining bake on the hierarchical transport, each of which links the
-/// whole scene again (the grid's included).
+/// whole scene again (the grid's included), unless the scene is small
+/// ([`crate::Plan::small`]: then [`MAX_PASSES`]).
 pub const MAX_HIERARCHICAL_PASSES: u32 = 3;
 
 /// What refinement did: the report's `refinement` object.
@@ -345,8 +347,10 @@ pub fn refine(
         return Ok(bake);
     }
     let hierarchical = bake.plan.transport().kind == TransportKind::Hierarchical;
-    // Every solve of a hierarchical bake links the whole scene again: fewer of them.
-    let max_passes = if hierarchical {
+    // Every solve of a hierarchical bake links the whole scene again: fewer of them, except
+    // on a small scene (`auto`'s, at most SMALL_SCENE_ELEMENTS on its grids), which links in
+    // a fraction of a second and refines like the dense transport.
+    let max_passes = if hierarchical && !bake.plan.small() {
         MAX_HIERARCHICAL_PASSES
     } else {
         MAX_PASSES

@@ -34,10 +34,10 @@ pub enum SolverKind {
 #[serde(rename_all = "lowercase")]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum TransportKind {
-    /// Dense for small scenes (exact), hierarchical above [`crate::DENSE_CROSSOVER`] elements.
+    /// The cheaper of the two by [`crate::cost`] (dense where it is affordable: exact).
     #[cfg_attr(
         feature = "clap",
-        value(help = "Dense up to the measured crossover, hierarchical above it")
+        value(help = "The cheaper of the two by a measured cost model (dense where affordable)")
     )]
     #[default]
     Auto,

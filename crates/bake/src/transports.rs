@@ -66,9 +66,13 @@ pub(crate) struct Transported {
     /// The dense transport's row-sum limit (what geometry would have created).
     pub row_sums: Option<RowSumLimit>,
     pub saved_links: Option<SavedLinks>,
-    /// Per element and band: the irradiance the links' models miss, their own and the other
-    /// elements' after one reflection (hierarchical transport only; [`crate::error::LinkMisses`]).
-    pub link_error: Option<[Vec<[f64; BANDS]>; 2]>,
+    /// Per element and band: the irradiance the links miss, by their models and their shadow
+    /// rays, and the other elements' after one reflection (hierarchical transport only;
+    /// [`crate::error::LinkMisses`]).
+    pub link_error: Option<[Vec<[f64; BANDS]>; 3]>,
+    /// Per element and band: what its pairs or links deliver, in quadrature
+    /// ([`transport::View::delivered_quadrature`]; the form-factor part of the error estimate).
+    pub delivered: Vec<[f64; BANDS]>,
     /// Hierarchical transport built here: the relative link tolerance its last pass ran with
     /// and the amplification `B̄ / Ē` that pass measured.
     pub link_tolerance: Option<(f64, f64)>,
@@ -102,6 +106,7 @@ pub(crate) fn dark(p: &Problem) -> Result<Transported, BakeError> {
         row_sums: None,
         saved_links: None,
         link_error: None,
+        delivered: vec![[0.0; BANDS]; n],
         link_tolerance: None,
     })
 }
@@ -170,23 +175,27 @@ fn solved(
     stages: &mut Stages,
     key: u64,
 ) -> Result<Transported, BakeError> {
-    let (solution, irradiance, energy, link_error) = {
+    let (solution, irradiance, energy, link_error, delivered) = {
         let view = built.operator.view().map_err(BakeError::Internal)?;
         let solution = solve(p, view, progress)?;
         stages.record("solve");
         let (irradiance, energy) = p.finish(&view, &solution)?;
-        let link_error = view.link_error(&solution.b).map(|local| {
-            // F (ρ δH): the other elements' misses after one reflection.
-            let reflected: Vec<[f64; BANDS]> = local
+        let link_error = view.link_error(&solution.b).map(|misses| {
+            // F (ρ δH): the other elements' misses of both kinds (in quadrature: independent)
+            // after one reflection.
+            let reflected: Vec<[f64; BANDS]> = misses
+                .models
                 .iter()
+                .zip(&misses.visibility)
                 .zip(p.rho)
-                .map(|(m, r)| [0, 1, 2].map(|c| r[c] * m[c]))
+                .map(|((m, v), r)| [0, 1, 2].map(|c| r[c] * m[c].hypot(v[c])))
                 .collect();
-            let mut carried = vec![[0.0; BANDS]; local.len()];
+            let mut carried = vec![[0.0; BANDS]; reflected.len()];
             solver::Operator::apply_bands(&view, &reflected, &mut carried);
-            [local, carried]
+            [misses.models, carried, misses.visibility]
         });
-        (solution, irradiance, energy, link_error)
+        let delivered = view.delivered_quadrature(&solution.b);
+        (solution, irradiance, energy, link_error, delivered)
     };
     let row_sums = built.row_sums().cloned();
     let counts = counts(&built.stats);
@@ -211,6 +220,7 @@ fn solved(
         row_sums,
         saved_links,
         link_error,
+        delivered,
         link_tolerance,
     })
 }

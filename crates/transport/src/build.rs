@@ -9,8 +9,9 @@ use crate::hierarchical::{HierarchicalOptions, HierarchicalStats, HierarchicalTr
 use crate::{LinkError, LinkProgress, Transport};
 use form_factor::{ContourOptions, Estimator, FormFactors, Occlusion, RowSumLimit};
 use mesher::ElementMesh;
+use rayon::prelude::*;
 use scene::Polygon;
-use solver::{DenseMatrix, SolveError, BANDS};
+use solver::{DenseMatrix, Operator, SolveError, BANDS};
 use visibility::Effects;
 use visibility::Occluders;
 
@@ -131,10 +132,34 @@ impl BuiltOperator {
 }
 
 impl<'a> View<'a> {
-    /// Per element and band, the irradiance error the links' models leave with radiosities
-    /// `b` ([`HierarchicalTransport::link_error`]); `None` for the dense transport, whose
-    /// every pair is integrated.
-    pub fn link_error(&self, b: &[[f64; BANDS]]) -> Option<Vec<[f64; BANDS]>> {
+    /// Per element and band, `(Σ_j (F_ij b_j)²)^½`: what each pair (or link) delivers, in
+    /// quadrature. The form factors' errors are each pair's own (relative, at most the
+    /// estimator's stated accuracy, of either sign), so this times the accuracy is what a row
+    /// may miss of `H_i = Σ_j F_ij b_j`, rather than the accuracy times `H_i` (every error of
+    /// one sign).
+    pub fn delivered_quadrature(&self, b: &[[f64; BANDS]]) -> Vec<[f64; BANDS]> {
+        match self {
+            View::Dense(f) => (0..f.n())
+                .into_par_iter()
+                .map(|i| {
+                    let mut sum = [0.0; BANDS];
+                    for (&fij, bj) in f.row(i).iter().zip(b) {
+                        for (s, v) in sum.iter_mut().zip(bj) {
+                            let d = fij * v;
+                            *s += d * d;
+                        }
+                    }
+                    sum.map(f64::sqrt)
+                })
+                .collect(),
+            View::Hierarchical(h) => h.link_error(b).delivered,
+        }
+    }
+
+    /// Per element and band, the irradiance error the links' models and shadow rays leave
+    /// with radiosities `b` ([`HierarchicalTransport::link_error`]); `None` for the dense
+    /// transport, whose every pair is integrated.
+    pub fn link_error(&self, b: &[[f64; BANDS]]) -> Option<crate::LinkMisses> {
         match self {
             View::Dense(_) => None,
             View::Hierarchical(h) => Some(h.link_error(b)),

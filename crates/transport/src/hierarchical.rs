@@ -490,19 +490,26 @@ impl HierarchicalTransport {
         }
     }
 
-    /// Per element and band: an estimate of the irradiance error its links' linear models leave
-    /// with the radiosities `b` (per element). Each link (through an ancestor or the element
-    /// itself) from source s misses up to `F (residual_r · B_s + residual_s · ΔB_s)`: the
-    /// terms of the linking criterion (module docs) without ρ, with B_s the mean and ΔB_s the
-    /// spread of `b` over s (the residuals are ranges, max − min, of the fit's residual: at
-    /// most twice the largest deviation). The links' misses are of either sign and
-    /// independent, so they are combined in quadrature. Measured against the exact matrix by
-    /// the test `link_error_bounds_the_coarse_links_irradiance_error` on a box: 96% of
-    /// element-bands bounded, median true/estimate 0.25 (their plain sum: 100%, 0.05; half the
-    /// ranges in quadrature: 82%, 0.50). Times ρ it is the links'
-    /// part of the error of b for one bounce; element–element links contribute nothing (their
-    /// kernel is integrated, not modelled).
-    pub fn link_error(&self, b: &[[f64; BANDS]]) -> Vec<[f64; BANDS]> {
+    /// Per element and band: estimates of the irradiance error its links leave with the
+    /// radiosities `b` (per element), as [`LinkError`]:
+    /// - `models`: what the links' linear models miss. Each link (through an ancestor or the
+    ///   element itself) from source s misses up to `F (residual_r · B_s + residual_s · ΔB_s)`:
+    ///   the terms of the linking criterion (module docs) without ρ, with B_s the mean and
+    ///   ΔB_s the spread of `b` over s (the residuals are ranges, max − min, of the fit's
+    ///   residual: at most twice the largest deviation). Measured against the exact matrix by
+    ///   the test `link_error_bounds_the_coarse_links_irradiance_error` on a box: 96% of
+    ///   element-bands bounded, median true/estimate 0.25 (their plain sum: 100%, 0.05; half
+    ///   the ranges in quadrature: 82%, 0.50).
+    /// - `visibility`: what the links' shadow rays leave, `F σ B_s` per link, σ the standard
+    ///   deviation of its estimated visible fraction (`linking::visibility_sd`).
+    /// - `delivered`: the links' deliveries `F B_s` in quadrature, which times the estimator's
+    ///   relative accuracy is what the links' form factors may miss.
+    ///
+    /// The links' misses are of either sign and independent (each link's rays are seeded by
+    /// its pair), so each is combined in quadrature. Times ρ they are the links' part of the
+    /// error of b for one bounce; element–element links miss nothing of the kernel (it is
+    /// integrated, not modelled) but may of visibility.
+    pub fn link_error(&self, b: &[[f64; BANDS]]) -> LinkMisses {
         let total = self.nodes.len();
         // Per node and band: the area-weighted mean of b (what a link sends) and its spread.
         let mut mean = vec![[0.0; BANDS]; total];
@@ -525,20 +532,23 @@ impl HierarchicalTransport {
             })
             .collect();
         let e = &self.entries;
-        let mut error: Vec<[f64; BANDS]> = (0..total)
+        // Per node: the sums of squares of the models' misses, the visibility's, and the
+        // deliveries.
+        let mut error: Vec<[[f64; BANDS]; 3]> = (0..total)
             .into_par_iter()
             .map(|r| {
-                let mut sum = [0.0; BANDS];
+                let mut sum = [[0.0; BANDS]; 3];
                 for k in e.offsets[r] as usize..e.offsets[r + 1] as usize {
-                    let [over_r, over_s] = e.residuals[k].map(f64::from);
-                    if over_r == 0.0 && over_s == 0.0 {
-                        continue;
-                    }
+                    let [over_r, over_s, deviation] = e.residuals[k].map(f64::from);
                     let (s, f) = (e.sources[k] as usize, e.coefficients[k]);
                     for (c, spread) in spreads.iter().enumerate() {
-                        // In quadrature (above): squares here, the root at the leaves.
+                        // In quadrature (above): squares here, the roots at the leaves.
                         let miss = f * (over_r * mean[s][c] + over_s * spread[s]);
-                        sum[c] += miss * miss;
+                        sum[0][c] += miss * miss;
+                        let noise = f * deviation * mean[s][c];
+                        sum[1][c] += noise * noise;
+                        let delivered = f * mean[s][c];
+                        sum[2][c] += delivered * delivered;
                     }
                 }
                 sum
@@ -550,21 +560,39 @@ impl HierarchicalTransport {
             let above = error[u];
             for &c in &self.children[node.first as usize..(node.first + node.count) as usize] {
                 for (v, a) in error[c as usize].iter_mut().zip(above) {
-                    *v += a;
+                    for (x, y) in v.iter_mut().zip(a) {
+                        *x += y;
+                    }
                 }
             }
         }
         error.truncate(self.n);
-        for v in error.iter_mut().flatten() {
-            *v = v.sqrt();
+        let root = |kind: usize| -> Vec<[f64; BANDS]> {
+            error.iter().map(|v| v[kind].map(f64::sqrt)).collect()
+        };
+        LinkMisses {
+            models: root(0),
+            visibility: root(1),
+            delivered: root(2),
         }
-        error
     }
 
     /// What building it did.
     pub fn stats(&self) -> HierarchicalStats {
         self.stats
     }
+}
+
+/// Per element and band, the irradiance a hierarchical transport's links miss
+/// ([`HierarchicalTransport::link_error`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LinkMisses {
+    /// What the links' linear models of the kernel miss.
+    pub models: Vec<[f64; BANDS]>,
+    /// What the links' shadow rays leave (one standard deviation).
+    pub visibility: Vec<[f64; BANDS]>,
+    /// The links' deliveries `F B_s` in quadrature ([`View::delivered_quadrature`]).
+    pub delivered: Vec<[f64; BANDS]>,
 }
 
 impl Operator for HierarchicalTransport {

@@ -27,8 +27,8 @@ pub use build::{
     View,
 };
 pub use hierarchical::{
-    HierarchicalOptions, HierarchicalStats, HierarchicalTransport, LinkError, LinkProgress,
-    LinkTolerance, LinksFileError, MAX_AMPLIFICATION,
+    HierarchicalOptions, HierarchicalStats, HierarchicalTransport, LinkError, LinkMisses,
+    LinkProgress, LinkTolerance, LinksFileError, MAX_AMPLIFICATION,
 };
 use solver::{Operator, BANDS};
 

@@ -648,7 +648,7 @@ fn link_error_bounds_the_coarse_links_irradiance_error() {
         let (h, _) = build(polygons, Subdivision::MaxSize(0.2), tolerance);
         let mut coarse = vec![[0.0; 3]; n];
         h.apply_bands(&x, &mut coarse);
-        let estimate = h.link_error(&x);
+        let estimate = h.link_error(&x).models;
         assert_eq!(estimate.len(), n);
         for i in 0..n {
             for c in 0..3 {
@@ -667,6 +667,7 @@ fn link_error_bounds_the_coarse_links_irradiance_error() {
     let (fine, _) = build(polygons, Subdivision::Count(2), 1e-9);
     assert!(fine
         .link_error(&x[..fine.n()])
+        .models
         .iter()
         .flatten()
         .all(|&v| v == 0.0));

@@ -41,6 +41,28 @@ pub(super) struct Link {
     /// Whether `g` is the estimator's value with its visible fraction (only links that are
     /// kept are integrated and get rays; until then `g0` is the screen's rough value).
     pub(super) final_value: bool,
+    /// The standard deviation of the visible fraction its shadow rays estimated (0 where
+    /// nothing can occlude; [`visibility_sd`]), for the error estimate.
+    pub(super) visibility_sd: f32,
+}
+
+/// The standard deviation of a visible fraction estimated from `rays` stratified shadow rays
+/// that found `fraction`: where a shadow boundary crosses the pair (0 < fraction < 1), that
+/// of jittered sampling of an indicator with a smooth boundary in the pair's 4-D domain,
+/// about `1 / (2 K^{5/8})` (the dense transport's visibility estimate, `bake::error`); where
+/// every ray agreed, the share the rays can have missed ([`blocked_uncertainty`]). A clipped
+/// pair (a node straddling the other's plane) pushes its light to all of the node: half of it
+/// may be behind.
+pub(super) fn visibility_sd(rays: u32, fraction: f64, clipped: bool) -> f32 {
+    let sampled = if rays == 0 {
+        0.0
+    } else if fraction > 0.0 && fraction < 1.0 {
+        0.5 / f64::from(rays).powf(0.625)
+    } else {
+        blocked_uncertainty(rays)
+    };
+    let clip = if clipped { 0.5 } else { 0.0 };
+    sampled.max(clip) as f32
 }
 
 /// What the linking of one pass needs.
@@ -157,6 +179,7 @@ impl Linker<'_> {
             link.g0 = pair.value;
         }
         let mut fraction = 1.0;
+        let mut rays = 0;
         if link.blocked {
             fraction = 0.0;
         } else if link.occludable {
@@ -175,6 +198,7 @@ impl Linker<'_> {
                     [np.polygon as usize, nq.polygon as usize],
                 );
                 c.rays_cast.fetch_add(1, Ordering::Relaxed);
+                rays = 1;
                 fraction = if blocked { 0.0 } else { 1.0 };
             } else {
                 let samples = if importance < 0.25 * self.epsilon {
@@ -189,10 +213,12 @@ impl Linker<'_> {
                     pair_seed(link.p as usize, link.q as usize),
                 );
                 c.rays_cast.fetch_add(u64::from(v.rays), Ordering::Relaxed);
+                rays = v.rays;
                 fraction = v.fraction;
             }
         }
         link.g = link.g0 * fraction;
+        link.visibility_sd = visibility_sd(rays, fraction, link.clipped);
         // Occludable: a shadow boundary may cross the pair even where every ray of the
         // sample arrived (a few rays per node miss small occluders).
         if !link.blocked {
@@ -303,6 +329,7 @@ impl Linker<'_> {
             residual,
             gradient,
             final_value: false,
+            visibility_sd: 0.0,
         };
         // A pair that the uncertainty of its visibility alone would refine gets its shadow
         // rays now: when every ray is blocked (two rooms with a wall between them) its visible

@@ -5,16 +5,16 @@
 //! The trees are not stored: they are rebuilt from the mesh (deterministically) and their node
 //! count is checked. The caller's `key` (a hash of geometry and options) must match.
 //!
-//! Layout, little-endian: `b"BAKELNK3"`, key u64, elements u64, nodes u64, entries u64,
+//! Layout, little-endian: `b"BAKELNK4"`, key u64, elements u64, nodes u64, entries u64,
 //! accuracy f64, links u64, blocked links u64; `offsets` (nodes + 1) × u64, `sources`
 //! entries × u32, `coefficients` entries × f64, `gradients` entries × 6 × f32, `residuals`
-//! entries × 2 × f32, `masked` entries × u8 (0 or 1); then the shadow masks (`masks.rs`): their count M u64, nodes
+//! entries × 3 × f32 (over the receiver, over the source, the visibility's relative deviation), `masked` entries × u8 (0 or 1); then the shadow masks (`masks.rs`): their count M u64, nodes
 //! M × u32, offsets (M + 1) × u64, centroids M × 3 × f64, and per mask entry its element u32
 //! and scale f64. Every value is checked on reading (monotone offsets, nodes and elements in
 //! range, finite non-negative coefficients and scales, finite gradients and centroids, a mask
 //! for every masked entry's node, residuals finite and non-negative): a damaged file is an error, never a panic or a NaN.
-//! Versions 1 (before the masks) and 2 (before the residuals) are refused as not of this
-//! version.
+//! Versions 1 (before the masks), 2 (before the residuals) and 3 (before the visibility
+//! deviation) are refused as not of this version.
 
 use super::{build_trees, Entries, HierarchicalStats, HierarchicalTransport, Masks, NONE};
 use glam::DVec3;
@@ -22,12 +22,12 @@ use mesher::ElementMesh;
 use scene::Polygon;
 use std::io::{self, Read, Write};
 
-const MAGIC: &[u8; 8] = b"BAKELNK3";
+const MAGIC: &[u8; 8] = b"BAKELNK4";
 
 /// Why a links file could not be used.
 #[derive(Debug, thiserror::Error)]
 pub enum LinksFileError {
-    #[error("not a links file of this version of bake (no BAKELNK3 header)")]
+    #[error("not a links file of this version of bake (no BAKELNK4 header)")]
     NotALinksFile,
     #[error(
         "the links were built for other geometry or link options (key {found:016x}, this bake \
@@ -191,8 +191,8 @@ impl HierarchicalTransport {
         }
         let mut residuals = Vec::with_capacity(reserve);
         for _ in 0..entries {
-            r.read_exact(&mut buffer[..8])?;
-            let mut v = [0.0f32; 2];
+            r.read_exact(&mut buffer[..12])?;
+            let mut v = [0.0f32; 3];
             for (k, x) in v.iter_mut().enumerate() {
                 let b = &buffer[4 * k..4 * k + 4];
                 *x = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);

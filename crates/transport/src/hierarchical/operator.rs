@@ -21,8 +21,10 @@ pub(super) struct Entries {
     pub(super) masked: Vec<bool>,
     /// Per entry: the kernel's relative variation that the link's linear model leaves over
     /// the receiver and over the source (the links' `residual`, receiver first; 0 over an
-    /// element), for the error estimate ([`HierarchicalTransport::link_error`]).
-    pub(super) residuals: Vec<[f32; 2]>,
+    /// element), and the standard deviation of the coefficient that its shadow rays leave,
+    /// relative to the coefficient (the link's `visibility_sd` over its visible fraction),
+    /// for the error estimate ([`HierarchicalTransport::link_error`]).
+    pub(super) residuals: Vec<[f32; 3]>,
 }
 
 /// The operator over borrowed trees and entries: the final transport and the coarse solves
@@ -257,10 +259,16 @@ pub(super) fn assemble(nodes: &[Node], links: &[Link], masks: bool) -> Entries {
     let mut coefficients = vec![0.0f64; entries];
     let mut gradients = vec![[[0.0f32; 3]; 2]; entries];
     let mut masked = vec![false; entries];
-    let mut residuals = vec![[0.0f32; 2]; entries];
+    let mut residuals = vec![[0.0f32; 3]; entries];
     for l in links() {
         // The gradient was fitted to the unoccluded kernel: scale it by the visible fraction.
         let visible = if l.g0 > 0.0 { (l.g / l.g0) as f32 } else { 0.0 };
+        // The visible fraction's deviation relative to the coefficient g = g0 × fraction.
+        let deviation = if visible > 0.0 {
+            l.visibility_sd / visible
+        } else {
+            0.0
+        };
         for (side, (r, s)) in [(l.p, l.q), (l.q, l.p)].into_iter().enumerate() {
             let k = fill[r as usize] as usize;
             let area = nodes[r as usize].surface.area;
@@ -271,7 +279,7 @@ pub(super) fn assemble(nodes: &[Node], links: &[Link], masks: bool) -> Entries {
                 l.gradient[1 - side].map(|v| v * visible),
             ];
             masked[k] = masks && masks::masked(l);
-            residuals[k] = [l.residual[side], l.residual[1 - side]].map(|v| v.max(0.0));
+            residuals[k] = [l.residual[side], l.residual[1 - side], deviation].map(|v| v.max(0.0));
             fill[r as usize] += 1;
         }
     }
