@@ -93,7 +93,7 @@ pub trait FileOps: std::fmt::Debug + Send + Sync {
 /// never taken for temporaries), and no temporary is created after it removed them.
 static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
-fn live() -> MutexGuard<'static, Vec<PathBuf>> {
+pub(crate) fn live() -> MutexGuard<'static, Vec<PathBuf>> {
     LIVE.lock().unwrap_or_else(PoisonError::into_inner)
 }
 

@@ -40,7 +40,7 @@
 //! previous file has its new target removed); an undone step's target was never touched, so
 //! only its temporary and a backup made just before the crash are removed.
 
-use crate::files::{parent_dir, process_alive, sync_dir};
+use crate::files::{live, parent_dir, process_alive, sync_dir};
 use crate::ExportError;
 use std::ffi::OsString;
 use std::fs;
@@ -198,15 +198,19 @@ pub struct Recovered {
 /// any `<name>`: a previous bake may have had other outputs) whose process `<pid>` no longer
 /// runs, and rolls its set back to the previous files (see the module's documentation for the
 /// journal's format and the rules), then removes the set's leftover temporaries and backups
-/// and the journal. A journal of a running process (another bake committing now) is left
-/// alone, as is everything where liveness cannot be told (no `/proc`). Call it at the start of
-/// a bake, before [`remove_stale_temporaries`](crate::remove_stale_temporaries), which would
+/// and the journal. A journal of another running process (another bake committing now) is
+/// left alone, as is everything where liveness cannot be told (no `/proc`). A journal named
+/// with this process's own id is a dead process's too (one that had the same id before a
+/// reboot): this process's own commits hold the lock this function takes from before they
+/// write their journal until they removed it. Call it at the start of a bake, before [`remove_stale_temporaries`](crate::remove_stale_temporaries), which would
 /// otherwise remove the backups the rollback needs.
 ///
 /// An error lists every step that could not be put back (its journal is kept, so a later
 /// call retries): the previous file is then still under the backup name the message gives.
 pub fn recover_interrupted_commits(targets: &[PathBuf]) -> Result<Recovered, ExportError> {
     let own = std::process::id();
+    // No commit of this process is between its journal's writing and its removal meanwhile.
+    let _commits = live();
     let mut recovered = Recovered::default();
     let mut problems = Vec::new();
     let mut dirs: Vec<PathBuf> = Vec::new();
@@ -224,7 +228,7 @@ pub fn recover_interrupted_commits(targets: &[PathBuf]) -> Result<Recovered, Exp
             .flatten()
             .filter(|entry| {
                 let pid = entry.file_name().to_str().and_then(journal_pid);
-                let dead = pid.is_some_and(|p| p != own && process_alive(p) == Some(false));
+                let dead = pid.is_some_and(|p| p == own || process_alive(p) == Some(false));
                 dead && entry.file_type().is_ok_and(|t| t.is_file())
             })
             .map(|entry| entry.path())

@@ -248,11 +248,15 @@ fn one_step_journal(dir: &Path, journal_name: &str) -> (PathBuf, PathBuf) {
     (target, backup)
 }
 
+/// Another process that runs now (the one that started this test) may be committing: its
+/// journal is not touched.
 #[test]
 fn the_journal_of_a_running_process_is_left_alone() {
     let dir = tempfile::tempdir().expect("temp dir");
     let d = dir.path();
-    let live = format!(".out.gltf.journal-{}", std::process::id());
+    let running = std::os::unix::process::parent_id();
+    assert!(Path::new(&format!("/proc/{running}")).exists());
+    let live = format!(".out.gltf.journal-{running}");
     let (target, backup) = one_step_journal(d, &live);
     let recovered = recover_interrupted_commits(std::slice::from_ref(&target));
     assert_eq!(recovered.ok(), Some(Recovered::default()));
@@ -271,6 +275,21 @@ fn the_journal_of_a_running_process_is_left_alone() {
     assert_eq!(recovered.ok(), Some(expected));
     assert_eq!(fs::read(&target).expect("read"), b"old");
     assert!(!backup.exists() && !dead.exists());
+}
+
+/// A journal named with this process's own id is a previous process's (the same id after a
+/// reboot): this process's commits hold the lock recovery takes, so none is in progress.
+#[test]
+fn a_journal_with_this_process_id_is_a_previous_process_and_rolled_back() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let own = d.join(format!(".out.gltf.journal-{}", std::process::id()));
+    let name = own.file_name().and_then(|n| n.to_str()).expect("a name");
+    let (target, backup) = one_step_journal(d, name);
+    let recovered = recover_interrupted_commits(std::slice::from_ref(&target));
+    assert_eq!(recovered.ok().map(|r| r.restored), Some(1));
+    assert_eq!(fs::read(&target).expect("read"), b"old");
+    assert!(!backup.exists() && !own.exists());
 }
 
 /// A journal that cannot be read is reported and kept, with everything it names.
