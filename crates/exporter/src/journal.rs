@@ -5,7 +5,9 @@
 //! # Name and place
 //!
 //! `.<name>.journal-<pid>` beside the set's *last* target (`<name>` its file name, `<pid>` the
-//! committing process): OUT in every bake, so the folder every rerun of a command writes into.
+//! committing process): in a bake that is OUT, or with `--target lightmap` the last lightmap
+//! file beside it, so OUT's folder, the one every rerun of a command writes into (a
+//! `--report` may be elsewhere, or dropped the next time).
 //! It is written to a temporary (`.<name>.tmp-<pid>-<n>`, a stale temporary like any other if
 //! the write is cut short), synced, renamed into place, and the folder is synced, all before
 //! the first target is touched. The commit removes it once the last rename succeeded (the
