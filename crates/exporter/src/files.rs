@@ -1,6 +1,7 @@
 //! Output paths and atomic writes: every file is written to a temporary in its own directory
 //! and renamed into place, so a reader never sees a partial file.
 
+use crate::journal::{absolute, encode, journal_path_for, Step};
 use crate::ExportError;
 use std::fs;
 use std::io::Write;
@@ -92,7 +93,7 @@ pub trait FileOps: std::fmt::Debug + Send + Sync {
 /// never taken for temporaries), and no temporary is created after it removed them.
 static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
-fn live() -> MutexGuard<'static, Vec<PathBuf>> {
+pub(crate) fn live() -> MutexGuard<'static, Vec<PathBuf>> {
     LIVE.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
@@ -163,10 +164,11 @@ fn copy_file_or_link(from: &Path, to: &Path) -> std::io::Result<()> {
 /// dropping an uncommitted set (any error, or a panic unwinding) removes every temporary.
 /// A commit that fails at any step puts every file it had replaced back (the previous file
 /// is kept under a temporary's name until the whole set is in place): the set is all
-/// previous or all new.
+/// previous or all new. A crash in the renames is undone at the next start from the commit's
+/// journal ([`recover_interrupted_commits`](crate::recover_interrupted_commits)).
 ///
 /// Temporaries (and those backups) are named `.<name>.tmp-<pid>-<n>` (see
-/// [`remove_stale_temporaries`]).
+/// [`remove_stale_temporaries`]), the journal `.<name>.journal-<pid>`.
 #[derive(Debug)]
 pub struct OutputSet {
     /// (temporary, target), in the order they are renamed.
@@ -233,35 +235,73 @@ impl OutputSet {
     /// half-way through the set, or replace a device). Each existing target is first given a
     /// second name (a hard link, or a copy where links cannot be made), so that if a later
     /// rename fails every replaced target is put back and every new one removed: the error
-    /// comes with the previous set intact. Only a crash (kill -9, power loss) in the renames
-    /// can leave a set that mixes new and previous files.
+    /// comes with the previous set intact.
+    ///
+    /// Before the first rename a commit journal listing every step is on disk
+    /// (`.<name>.journal-<pid>` beside the last target; its format is in `journal.rs`). It is
+    /// removed after the last rename (the commit point: a failure to remove it rolls the set
+    /// back too) or after a rollback, and the backups only after it. A crash (kill -9, power
+    /// loss) in the renames still leaves a set that mixes new and previous files, but only
+    /// until the next start: [`recover_interrupted_commits`](crate::recover_interrupted_commits)
+    /// finds the dead process's journal and puts the previous set back.
     pub fn commit(mut self) -> Result<Vec<PathBuf>, ExportError> {
+        if self.staged.is_empty() {
+            return Ok(Vec::new());
+        }
         for (_, target) in &self.staged {
             check_target(target)?;
         }
-        // Held through the renames and any rollback: an interrupt waits for the set to be
-        // all new or all previous.
+        // Held through the journal, the renames and any rollback: an interrupt waits for the
+        // set to be all new or all previous. (An error before the renames returns with the
+        // lock released first, then drop removes the temporaries.)
         let mut live = live();
+        let steps = self.plan()?;
+        let journal = self.write_journal(&steps)?;
         let staged = std::mem::take(&mut self.staged);
         for (temporary, _) in &staged {
             // Renamed or removed below, either way no longer a temporary to remove.
             forget(&mut live, temporary);
         }
         let mut replaced: Vec<Replaced> = Vec::with_capacity(staged.len());
-        let mut rest = staged.into_iter();
-        while let Some((temporary, target)) = rest.next() {
-            let step = self.replace(&temporary, &target);
-            match step {
-                Ok(backup) => replaced.push(Replaced { target, backup }),
+        let mut rest = staged.into_iter().zip(steps);
+        while let Some(((temporary, target), step)) = rest.next() {
+            match self.replace(&temporary, &target, step.backup.as_deref()) {
+                Ok(()) => replaced.push(Replaced {
+                    target,
+                    backup: step.backup,
+                }),
                 Err(error) => {
                     let _ = self.files.remove_file(&temporary);
-                    rest.for_each(|(t, _)| {
+                    rest.for_each(|((t, _), _)| {
                         let _ = self.files.remove_file(&t);
                     });
-                    return Err(self.roll_back(replaced, error));
+                    let error = self.roll_back(replaced, error);
+                    // Best effort: a journal left behind finds nothing left to put back.
+                    let _ = self.files.remove_file(&journal);
+                    return Err(error);
                 }
             }
         }
+        // The renames are on disk before the journal that would undo them goes.
+        let mut dirs: Vec<&Path> = Vec::new();
+        for done in &replaced {
+            let dir = parent_dir(&done.target);
+            if !dirs.contains(&dir) {
+                dirs.push(dir);
+            }
+        }
+        dirs.iter().for_each(|dir| sync_dir(dir));
+        if let Err(source) = self.files.remove_file(&journal) {
+            // Left in place, the journal would have the next start undo this commit.
+            let error = ExportError::Io {
+                path: journal.clone(),
+                source,
+            };
+            let error = self.roll_back(replaced, error);
+            let _ = self.files.remove_file(&journal);
+            return Err(error);
+        }
+        sync_dir(parent_dir(&journal));
         for done in &replaced {
             if let Some(backup) = &done.backup {
                 // Best effort: a backup left behind is a stale temporary for the next bake.
@@ -272,34 +312,83 @@ impl OutputSet {
         Ok(replaced.into_iter().map(|r| r.target).collect())
     }
 
-    /// Keeps the previous `target` (if any) under a temporary's name, then renames
-    /// `temporary` onto it. Returns the backup's path.
-    fn replace(&self, temporary: &Path, target: &Path) -> Result<Option<PathBuf>, ExportError> {
+    /// The steps of the commit, paths absolute: a backup name for each target that exists now.
+    fn plan(&self) -> Result<Vec<Step>, ExportError> {
+        let mut steps = Vec::with_capacity(self.staged.len());
+        for (temporary, target) in &self.staged {
+            let backup = match fs::symlink_metadata(target) {
+                Ok(_) => Some(absolute(&temporary_path_for(target))?),
+                Err(error) if error.kind() == std::io::ErrorKind::NotFound => None,
+                Err(source) => {
+                    return Err(ExportError::Io {
+                        path: target.clone(),
+                        source,
+                    })
+                }
+            };
+            steps.push(Step {
+                target: absolute(target)?,
+                backup,
+                temporary: absolute(temporary)?,
+            });
+        }
+        Ok(steps)
+    }
+
+    /// Writes the journal of `steps` beside the last target (temporary, synced, renamed, the
+    /// folder synced) and returns its path. Nothing of the set has changed yet if it fails.
+    fn write_journal(&self, steps: &[Step]) -> Result<PathBuf, ExportError> {
+        let Some(last) = steps.last() else {
+            return Err(ExportError::InvalidData(
+                "a commit of no file has no journal".to_string(),
+            ));
+        };
+        let journal = journal_path_for(&last.target);
+        let io = |source| ExportError::Io {
+            path: journal.clone(),
+            source,
+        };
+        let temporary = temporary_path_for(&last.target);
+        let written = self.files.create(&temporary).and_then(|mut file| {
+            file.write_all(&encode(steps))?;
+            file.sync_all()
+        });
+        let renamed = written.and_then(|()| self.files.rename(&temporary, &journal));
+        if let Err(error) = renamed {
+            let _ = self.files.remove_file(&temporary);
+            return Err(io(error));
+        }
+        sync_dir(parent_dir(&journal));
+        Ok(journal)
+    }
+
+    /// Keeps the previous `target` under the name `backup` (`None`: there is none), then
+    /// renames `temporary` onto it.
+    fn replace(
+        &self,
+        temporary: &Path,
+        target: &Path,
+        backup: Option<&Path>,
+    ) -> Result<(), ExportError> {
         let io = |source| ExportError::Io {
             path: target.to_path_buf(),
             source,
         };
-        let backup = match fs::symlink_metadata(target) {
-            Ok(_) => {
-                let backup = temporary_path_for(target);
-                if self.files.hard_link(target, &backup).is_err() {
-                    if let Err(error) = self.files.copy(target, &backup) {
-                        let _ = self.files.remove_file(&backup);
-                        return Err(io(error));
-                    }
+        if let Some(backup) = backup {
+            if self.files.hard_link(target, backup).is_err() {
+                if let Err(error) = self.files.copy(target, backup) {
+                    let _ = self.files.remove_file(backup);
+                    return Err(io(error));
                 }
-                Some(backup)
             }
-            Err(error) if error.kind() == std::io::ErrorKind::NotFound => None,
-            Err(error) => return Err(io(error)),
-        };
+        }
         if let Err(error) = self.files.rename(temporary, target) {
-            if let Some(backup) = &backup {
+            if let Some(backup) = backup {
                 let _ = self.files.remove_file(backup);
             }
             return Err(io(error));
         }
-        Ok(backup)
+        Ok(())
     }
 
     /// Puts back every target `replaced` changed, last first, and returns `error` (saying
@@ -432,13 +521,29 @@ fn temporary_pid(file_name: &str, name: &str) -> Option<u32> {
 }
 
 /// Whether process `pid` is alive (Linux: `/proc/<pid>` exists). `None` where that cannot
-/// be told (no `/proc`): such temporaries are kept.
-fn process_alive(pid: u32) -> Option<bool> {
+/// be told (no `/proc`): such temporaries (and journals) are kept.
+pub(crate) fn process_alive(pid: u32) -> Option<bool> {
     let proc = Path::new("/proc");
     if !proc.join("self").exists() {
         return None;
     }
     Some(proc.join(pid.to_string()).exists())
+}
+
+/// The folder `path` is in (`.` for a bare file name).
+pub(crate) fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    }
+}
+
+/// Syncs a folder, so that the renames and removals in it are on disk (best effort: a
+/// file system that cannot sync a folder still orders them in most cases).
+pub(crate) fn sync_dir(dir: &Path) {
+    if let Ok(dir) = fs::File::open(dir) {
+        let _ = dir.sync_all();
+    }
 }
 
 /// Removes the temporaries a killed bake left beside `targets`: files named
@@ -453,10 +558,7 @@ pub fn remove_stale_temporaries(targets: &[PathBuf]) -> usize {
         let Some(name) = target.file_name().and_then(|n| n.to_str()) else {
             continue;
         };
-        let dir = match target.parent() {
-            Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
+        let dir = parent_dir(target).to_path_buf();
         match dirs.iter_mut().find(|(d, _)| *d == dir) {
             Some((_, names)) => names.push(name.to_owned()),
             None => dirs.push((dir, vec![name.to_owned()])),

@@ -5,7 +5,7 @@
 //! bake's own result values, which this crate does not know.)
 //!
 //! Public API: [`write_gltf`] with a [`Bake`]; [`OutputSet`] for a set of files renamed into
-//! place together.
+//! place together, and [`recover_interrupted_commits`] for a set a crash left half renamed.
 //!
 //! The baked glTF keeps the input's nodes (same order and indices), names, transforms,
 //! children and scenes. Meshes are written un-instanced: every node whose mesh has baked
@@ -21,6 +21,7 @@ mod assets;
 mod document;
 mod files;
 mod geometry;
+mod journal;
 mod lightmap_gltf;
 mod same_file;
 
@@ -28,6 +29,7 @@ pub use files::{
     abandon_temporaries, check_target, live_temporaries, remove_stale_temporaries, Abandoned,
     FileOps, OutputSet, RealFiles,
 };
+pub use journal::{recover_interrupted_commits, Recovered};
 pub use same_file::{check_distinct, SameFile};
 
 pub use lightmap_gltf::{
@@ -114,6 +116,11 @@ pub enum ExportError {
     /// The scene, element mesh and radiosity do not fit together (a bug upstream).
     #[error("invalid bake data: {0}")]
     InvalidData(String),
+    /// An interrupted commit's set could not all be put back
+    /// ([`recover_interrupted_commits`]): every step that failed, and where its previous file
+    /// is; its journal is kept, so that the next start tries again.
+    #[error("cannot put back the outputs of an interrupted bake: {0}")]
+    Recovery(String),
     #[error("cannot encode {what}: {message}")]
     Encode { what: &'static str, message: String },
     /// A value about to be written is NaN or infinite (as stored: f32 in the glTF). `what`

@@ -213,6 +213,7 @@ pub fn run<E: Events>(job: &Job, events: &E) -> Result<Done, Failure> {
     let started = Instant::now();
     check_options(job)?;
     let plan = Plan::new(job)?;
+    recover_interrupted_outputs(&plan.files, events)?;
     let tracked = Tracked {
         events,
         step: std::sync::Mutex::new(None),
@@ -244,6 +245,25 @@ pub fn run<E: Events>(job: &Job, events: &E) -> Result<Done, Failure> {
         }
     }
     done
+}
+
+/// Before any work: puts back the previous set where a bake killed in its renames (kill -9,
+/// power loss) left its outputs half replaced ([`exporter::recover_interrupted_commits`],
+/// journals of dead processes beside `files`), with one warning line saying so. Refuses the
+/// bake (exit 3, naming each file that could not be put back and where its previous version
+/// is) when the rollback fails in part: baking on would remove those previous versions, whose
+/// names are stale temporaries' ([`exporter::remove_stale_temporaries`], at the export).
+fn recover_interrupted_outputs<E: Events>(files: &[PathBuf], events: &E) -> Result<(), Failure> {
+    let recovered = exporter::recover_interrupted_commits(files)
+        .map_err(|e| internal(anyhow!(e).context("refusing to bake")))?;
+    if recovered.journals > 0 {
+        events.warn(&format!(
+            "a bake killed while it replaced its outputs had left them half replaced: the \
+             previous set is back ({} file(s) restored, {} new file(s) removed)",
+            recovered.restored, recovered.removed
+        ));
+    }
+    Ok(())
 }
 
 /// What a bake knew when it stopped: the stage it was in, the scene's counts once imported,
