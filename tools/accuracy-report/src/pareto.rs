@@ -806,10 +806,14 @@ pub fn markdown(points: &[Point], quick: bool) -> String {
                 }
             }
         }
-        let front: Vec<String> = rows
+        let mut front: Vec<(&&Point, Measured)> = rows
             .iter()
             .filter(|p| p.front)
             .filter_map(|p| p.measured.map(|m| (p, m)))
+            .collect();
+        front.sort_by(|a, b| a.1.time_s.total_cmp(&b.1.time_s));
+        let front: Vec<String> = front
+            .into_iter()
             .map(|(p, m)| {
                 format!(
                     "{} {} ({:.3} s, {:.2e})",
@@ -817,7 +821,7 @@ pub fn markdown(points: &[Point], quick: bool) -> String {
                 )
             })
             .collect();
-        let _ = writeln!(s, "\nFront: {}.", front.join("; "));
+        let _ = writeln!(s, "\nFront, fastest first: {}.", front.join("; "));
         let presets: Vec<String> = rows
             .iter()
             .filter(|p| p.preset.is_some())
