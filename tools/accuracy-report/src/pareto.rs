@@ -739,8 +739,9 @@ pub fn markdown(points: &[Point], quick: bool) -> String {
          measured before) or refused by the memory guard are skipped and say so.\n\n\
          *Time*: the median wall time of {RUNS} library bakes (mesh, visibility, transport, \
          solve, refinement, H; no import, export or lightmap; one bake where the first took \
-         over {ONE_RUN_ABOVE_S} s, marked ¹), 2 cores shared with other work. *Links*, *rays*: the bake's \
-         counts (links of its last solve; shadow rays cast, masks included). *Displayed* and \
+         over {ONE_RUN_ABOVE_S} s, marked ¹), 2 cores shared with other work. *Links*, \
+         *rays*: the bake's counts, of its last solve where refinement solved more than once \
+         (links; shadow rays cast, masks included). *Displayed* and \
          *lightmap*: RMS error over a regular {POINTS} × {POINTS} grid of points on every \
          polygon that shows light (bilinear parameters of a quad; sub-triangle centroids of \
          a triangle), area-weighted, over the three bands, relative to the reference's mean \
