@@ -17,6 +17,7 @@
 
 mod doc;
 mod measure;
+mod pareto;
 mod peak;
 mod plot;
 mod presets;
@@ -65,6 +66,8 @@ struct Options {
     refinement: bool,
     /// Only the presets against the uniform front (their section of the doc).
     presets: bool,
+    /// Only the Pareto front of every knob on both transports (its section of the doc).
+    pareto: bool,
 }
 
 fn main() -> Result<()> {
@@ -85,17 +88,15 @@ fn run(options: &Options) -> Result<()> {
         }
         return Ok(());
     }
+    if options.pareto {
+        let points = pareto::sweep(&root, &options.out, options.quick)?;
+        let section = pareto::markdown(&points, options.quick);
+        return write_section(options, pareto::BEGIN, pareto::END, &section);
+    }
     if options.presets {
         let rows = presets::sweep(&root, &options.out, options.quick)?;
         let section = presets::markdown(&rows);
-        println!("{section}");
-        if let Some(path) = &options.doc {
-            let old = std::fs::read_to_string(path).unwrap_or_default();
-            let text = refinement::splice_between(&old, presets::BEGIN, presets::END, &section);
-            std::fs::write(path, text).with_context(|| format!("{}", path.display()))?;
-            eprintln!("wrote {}", path.display());
-        }
-        return Ok(());
+        return write_section(options, presets::BEGIN, presets::END, &section);
     }
     let cube = Scene::load("cube", &root.join("fixtures/cube.gltf"))?;
     let mut rows = Vec::new();
@@ -160,16 +161,28 @@ fn run(options: &Options) -> Result<()> {
             }
             _ => text,
         };
-        // So is the presets section (`--presets`).
-        let text = match (old.find(presets::BEGIN), old.find(presets::END)) {
-            (Some(a), Some(b)) if b > a => refinement::splice_between(
-                &text,
-                presets::BEGIN,
-                presets::END,
-                &old[a..b + presets::END.len()],
-            ),
-            _ => text,
-        };
+        // So are the presets (`--presets`) and Pareto (`--pareto`) sections.
+        let mut text = text;
+        for (begin, end) in [(presets::BEGIN, presets::END), (pareto::BEGIN, pareto::END)] {
+            if let (Some(a), Some(b)) = (old.find(begin), old.find(end)) {
+                if b > a {
+                    text = refinement::splice_between(&text, begin, end, &old[a..b + end.len()]);
+                }
+            }
+        }
+        std::fs::write(path, text).with_context(|| format!("{}", path.display()))?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// Prints `section` and puts it between `begin` and `end` in the doc (appended when it has
+/// none), when there is a doc.
+fn write_section(options: &Options, begin: &str, end: &str, section: &str) -> Result<()> {
+    println!("{section}");
+    if let Some(path) = &options.doc {
+        let old = std::fs::read_to_string(path).unwrap_or_default();
+        let text = refinement::splice_between(&old, begin, end, section);
         std::fs::write(path, text).with_context(|| format!("{}", path.display()))?;
         eprintln!("wrote {}", path.display());
     }
@@ -186,6 +199,7 @@ fn parse_args() -> Result<Options> {
         doc: Some(root.join("docs/accuracy.md")),
         refinement: false,
         presets: false,
+        pareto: false,
     };
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
@@ -197,6 +211,7 @@ fn parse_args() -> Result<Options> {
             "--cube-only" => options.cornell = false,
             "--refinement" => options.refinement = true,
             "--presets" => options.presets = true,
+            "--pareto" => options.pareto = true,
             "--cube-reference" => {
                 options.cube_reference = args
                     .next()
@@ -206,9 +221,11 @@ fn parse_args() -> Result<Options> {
             "-h" | "--help" => {
                 println!(
                     "usage: accuracy-report [--quick] [--cube-only] [--refinement] [--presets] \
-                     [--cube-reference N] [--out DIR] [--doc FILE | --no-doc]\n\
+                     [--pareto] [--cube-reference N] [--out DIR] [--doc FILE | --no-doc]\n\
                      --refinement: only the refinement on/off sweep and its section of the doc\n\
                      --presets: only the presets against the uniform front and their section\n\
+                     --pareto: only the Pareto front of every knob on both transports and its \
+                     section\n\
                      defaults: --cube-reference 48 --out docs/accuracy --doc docs/accuracy.md \
                      (workspace root)"
                 );
@@ -683,6 +700,7 @@ mod tests {
             doc: Some(dir.path().join("accuracy.md")),
             refinement: false,
             presets: false,
+            pareto: false,
         };
         run(&options).unwrap();
         let csv = std::fs::read_to_string(options.out.join("accuracy.csv")).unwrap();

@@ -52,13 +52,14 @@ pub struct PresetRow {
     pub error: f64,
 }
 
-/// The median-time bake of `request` on `scene`, with its error from `error`.
-fn measure(
+/// `runs` (at least one) whole library bakes of `request` on `scene`: the last bake and every
+/// run's wall time. A bake's own error (`BakeError`, e.g. the memory guard's refusal) is kept
+/// as the `anyhow` error's source, for callers that skip what the guard refuses.
+pub(crate) fn measure(
     scene: &Scene,
     request: &bake_core::Request,
     runs: usize,
-    error: &dyn Fn(&bake_core::Bake) -> f64,
-) -> Result<(bake_core::Bake, f64, f64)> {
+) -> Result<(bake_core::Bake, Vec<f64>)> {
     let mut times = Vec::new();
     let mut last = None;
     for _ in 0..runs.max(1) {
@@ -68,10 +69,15 @@ fn measure(
         times.push(start.elapsed().as_secs_f64());
         last = Some(bake);
     }
-    times.sort_by(f64::total_cmp);
-    let bake = last.expect("at least one run");
-    let e = error(&bake);
-    Ok((bake, times[times.len() / 2], e))
+    let bake = last.ok_or_else(|| anyhow::anyhow!("no run"))?;
+    Ok((bake, times))
+}
+
+/// The median of `times` (the upper one of an even count; 0 when empty).
+pub(crate) fn median(times: &[f64]) -> f64 {
+    let mut t = times.to_vec();
+    t.sort_by(f64::total_cmp);
+    t.get(t.len() / 2).copied().unwrap_or(0.0)
 }
 
 fn uniform(d: f64, polygons: &[importer::Polygon]) -> bake_core::Request {
@@ -115,7 +121,8 @@ pub fn sweep(root: &Path, out: &Path, quick: bool) -> Result<Vec<PresetRow>> {
                 previous_default(&scene.polygons),
             ));
             for (k, (label, q, request)) in requests.into_iter().enumerate() {
-                let (bake, time_s, e) = measure(scene, &request, runs, error)?;
+                let (bake, times) = measure(scene, &request, runs)?;
+                let (time_s, e) = (median(&times), error(&bake));
                 let transport = format!("{:?}", bake.plan.transport().kind).to_lowercase();
                 eprintln!(
                     "presets {}: {label}: {} elements ({transport}), {time_s:.3} s, rms {e:.3e}",
@@ -199,7 +206,7 @@ fn previous_default(polygons: &[importer::Polygon]) -> bake_core::Request {
 
 /// A converged reference bake of a scene with occluders: elements of diagonal /
 /// `per_diagonal`, not refined, hierarchical at link tolerance 1e-3 with 121 rays per link.
-fn converged(scene: &Scene, per_diagonal: f64) -> Result<bake_core::Bake> {
+pub(crate) fn converged(scene: &Scene, per_diagonal: f64) -> Result<bake_core::Bake> {
     eprintln!("presets {}: reference ...", scene.name);
     let request = bake_core::Request {
         subdivision: Some(Subdivision::MaxSize(mesher::max_element_size(

@@ -107,6 +107,23 @@ pub fn write_floor(dir: &Path) -> Result<std::path::PathBuf> {
     Ok(path)
 }
 
+/// The closed form of the floor's radiosity at (x, 0, z): ρE/π lit, 0 in the blocker's
+/// shadow; `None` within 5 cm of the shadow's edge (no mesh shows the step exactly).
+pub(crate) fn floor_exact(x: f64, z: f64) -> Option<f64> {
+    let (dx, dz) = (x.abs() - 1.0, z.abs() - 1.0);
+    let inside = dx < 0.0 && dz < 0.0;
+    let edge = if inside {
+        -dx.max(dz)
+    } else {
+        dx.max(0.0).hypot(dz.max(0.0))
+    };
+    (edge > 0.05).then_some(if inside {
+        0.0
+    } else {
+        RHO * SUN / std::f64::consts::PI
+    })
+}
+
 /// The displayed field's RMS error relative to the lit value and the share of points within
 /// 2%, over the 200 × 200 grid of floor points farther than 5 cm from the shadow's edge.
 pub fn displayed_errors(mesh: &ElementMesh, b: &[[f64; 3]]) -> (f64, f64) {
@@ -149,17 +166,9 @@ pub fn displayed_errors(mesh: &ElementMesh, b: &[[f64; 3]]) -> (f64, f64) {
                 -5.0 + (i as f64 + 0.5) * 0.05,
                 -5.0 + (j as f64 + 0.5) * 0.05,
             );
-            let (dx, dz) = (x.abs() - 1.0, z.abs() - 1.0);
-            let inside = dx < 0.0 && dz < 0.0;
-            let edge = if inside {
-                -dx.max(dz)
-            } else {
-                dx.max(0.0).hypot(dz.max(0.0))
-            };
-            if edge <= 0.05 {
+            let Some(expected) = floor_exact(x, z) else {
                 continue;
-            }
-            let expected = if inside { 0.0 } else { lit };
+            };
             let value = buckets[cell(z) * cells + cell(x)].iter().find_map(|&k| {
                 let [(a, va), (b, vb), (c, vc)] = tris[k];
                 let det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
