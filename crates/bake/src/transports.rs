@@ -180,7 +180,13 @@ fn solved(
         let solution = solve(p, view, progress)?;
         stages.record("solve");
         let (irradiance, energy) = p.finish(&view, &solution)?;
-        let link_error = view.link_error(&solution.b).map(|misses| {
+        let misses = view.link_error(&solution.b);
+        // The links' deliveries come with their misses; a dense matrix's rows are summed here.
+        let delivered = match &misses {
+            Some(m) => m.delivered.clone(),
+            None => view.delivered_quadrature(&solution.b),
+        };
+        let link_error = misses.map(|misses| {
             // F (ρ δH): the other elements' misses of both kinds (in quadrature: independent)
             // after one reflection.
             let reflected: Vec<[f64; BANDS]> = misses
@@ -194,7 +200,6 @@ fn solved(
             solver::Operator::apply_bands(&view, &reflected, &mut carried);
             [misses.models, carried, misses.visibility]
         });
-        let delivered = view.delivered_quadrature(&solution.b);
         (solution, irradiance, energy, link_error, delivered)
     };
     let row_sums = built.row_sums().cloned();
