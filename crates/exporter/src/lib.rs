@@ -18,6 +18,7 @@
 //! factor × texture × H, the reflected light with the texture's detail.
 
 mod assets;
+mod baked_texture;
 mod document;
 mod files;
 mod geometry;
@@ -32,6 +33,10 @@ pub use files::{
 pub use journal::{recover_interrupted_commits, Recovered};
 pub use same_file::{check_distinct, SameFile};
 
+pub use baked_texture::{
+    stage_baked_texture_gltf, surface_texels, BakedTextureBake, BakedTexturePaths,
+    BAKED_TEXTURE_EXTRAS_KEY,
+};
 pub use lightmap_gltf::{
     stage_lightmap_gltf, write_lightmap_gltf, LightmapBake, LightmapPaths, LightmapWritten,
     LIGHTMAP_EXTENSION, LIGHTMAP_EXTRAS_KEY, LIGHTMAP_UNITS,
