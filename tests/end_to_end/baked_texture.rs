@@ -240,20 +240,24 @@ fn cornell_box_texels_show_rho_h_plus_e_at_element_centres() {
     }
 }
 
+/// The textured floor's 2 × 2 texture (8-bit sRGB, row-major) and base-colour factor.
+const FLOOR_COLOURS: [[u8; 3]; 4] = [[230, 60, 40], [40, 200, 90], [70, 90, 220], [250, 240, 200]];
+const FLOOR_FACTOR: [f64; 3] = [0.9, 0.8, 1.0];
+
+/// `dir/floor.gltf`: the textures tests' lit floor with a 2 × 2 texture of [`FLOOR_COLOURS`]
+/// (NEAREST when `nearest`: four colours, each constant over a quarter of the floor).
+fn textured_floor(dir: &Path, nearest: bool) -> PathBuf {
+    let texture = png(2, 2, |x, y| FLOOR_COLOURS[(y * 2 + x) as usize]);
+    let input = dir.join("floor.gltf");
+    common::write_json(&input, &floor_scene(FLOOR_FACTOR, Some((texture, nearest))));
+    input
+}
+
 #[test]
 fn a_textured_floor_shows_the_texture_texel_times_h() {
     let dir = tempfile::tempdir().expect("a temporary directory");
-    // A 2 × 2 NEAREST texture: four colours, each constant over a quarter of the floor.
-    let colours = [
-        [230u8, 60, 40],
-        [40, 200, 90],
-        [70, 90, 220],
-        [250, 240, 200],
-    ];
-    let texture = png(2, 2, |x, y| colours[(y * 2 + x) as usize]);
-    let factor = [0.9, 0.8, 1.0];
-    let input = dir.path().join("floor.gltf");
-    common::write_json(&input, &floor_scene(factor, Some((texture, true))));
+    let input = textured_floor(dir.path(), true);
+    let (colours, factor) = (FLOOR_COLOURS, FLOOR_FACTOR);
     let (report, out) = bake_baked(&input, dir.path(), &["--exposure", "auto"]);
     let written = read_written(&out);
     // The floor's TEXCOORD_0 is ((x + 5) / 10, (z + 5) / 10).
@@ -326,39 +330,106 @@ fn a_glb_embeds_every_atlas_and_several_atlases_get_their_own_png() {
     bake_testkit::validate_clean(&[out, gltf_out]);
 }
 
+/// Runs a `tools/` check on a flat baked-texture bake of the Cornell box and asserts that it
+/// succeeded, compared at least `at_least` element centres and found none past 2 levels;
+/// its last `PREFIX {...}` line as JSON.
+fn check_with_tool(tool: &str, extra: &[&str], prefix: &str, at_least: u64) -> serde_json::Value {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (_, out) = bake_baked(&fixture("cornell.gltf"), dir.path(), &[]);
+    let report = dir.path().join("report.json");
+    let checked = std::process::Command::new(bake_testkit::tools_dir().join(tool))
+        .args([out.as_os_str(), report.as_os_str()])
+        .args(extra)
+        .output()
+        .expect("run a tools/ check");
+    let stdout = String::from_utf8_lossy(&checked.stdout);
+    let result: serde_json::Value = stdout
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix(prefix))
+        .and_then(|l| serde_json::from_str(l).ok())
+        .unwrap_or(serde_json::Value::Null);
+    println!("{tool}: {result}");
+    assert!(checked.status.success(), "{stdout}");
+    assert!(
+        result["compared"].as_u64().unwrap_or(0) >= at_least,
+        "{result}"
+    );
+    assert!(
+        result["max_levels"].as_f64().unwrap_or(f64::MAX) <= 2.0,
+        "{result}"
+    );
+    result
+}
+
 /// Blender's own import of the baked-texture bake (its `KHR_materials_unlit` set-up, nothing
 /// changed), rendered by Cycles from above: the floor's and the blocks' tops show
 /// (ρ × H + e) × exposure within 2/255 at element centres (`tools/blender-cycles-check
-/// --baked-texture`). Skipped when Blender is missing, unless `BAKE_REQUIRE_BLENDER=1`.
+/// --baked-texture`; measured 101 centres, at most 1.49 levels). Skipped when Blender is
+/// missing, unless `BAKE_REQUIRE_BLENDER=1`.
 #[test]
 fn blender_shows_the_baked_texture_as_the_report_says() {
     if !bake_testkit::blender_or_skip() {
         return;
     }
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    let (_, out) = bake_baked(&fixture("cornell.gltf"), dir.path(), &[]);
-    let report = dir.path().join("report.json");
-    let checked =
-        std::process::Command::new(bake_testkit::tools_dir().join("blender-cycles-check"))
-            .args([
-                out.as_os_str(),
-                report.as_os_str(),
-                "--baked-texture".as_ref(),
-            ])
-            .output()
-            .expect("run tools/blender-cycles-check");
-    let stdout = String::from_utf8_lossy(&checked.stdout);
-    let result: serde_json::Value = stdout
-        .lines()
-        .rev()
-        .find_map(|l| l.strip_prefix("CYCLES_CHECK "))
-        .and_then(|l| serde_json::from_str(l).ok())
-        .unwrap_or(serde_json::Value::Null);
-    println!("baked texture in Blender: {result}");
-    assert!(checked.status.success(), "{stdout}");
-    assert!(result["compared"].as_u64().unwrap_or(0) >= 50, "{result}");
-    assert!(
-        result["max_levels"].as_f64().unwrap_or(f64::MAX) <= 2.0,
-        "{result}"
+    check_with_tool(
+        "blender-cycles-check",
+        &["--baked-texture"],
+        "CYCLES_CHECK ",
+        50,
     );
+}
+
+/// three.js' stock GLTFLoader in headless Chromium (`tools/threejs-check`: software WebGL,
+/// no tone mapping, sRGB output, nothing else set up) shows (ρ × H + e) × exposure within
+/// 2/255 at every element centre, each seen from 1 mm in front along its normal. Skipped
+/// when Chromium is missing, unless `BAKE_REQUIRE_THREEJS=1` (or `BAKE_REQUIRE_ALL=1`).
+#[test]
+fn threejs_shows_the_baked_texture_as_the_report_says() {
+    let has_chromium = std::process::Command::new("chromium")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !has_chromium {
+        bake_testkit::skip(
+            "BAKE_REQUIRE_THREEJS",
+            "chromium is not installed (tools/ci-clients --chromium installs it)",
+        );
+        return;
+    }
+    let result = check_with_tool("threejs-check", &[], "THREEJS_CHECK ", 900);
+    assert_eq!(
+        result["materials"],
+        serde_json::json!(["MeshBasicMaterial"])
+    );
+}
+
+/// The same bytes whatever the thread count (the texels are computed in parallel).
+#[test]
+fn baked_textures_are_the_same_bytes_for_any_thread_count() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let input = textured_floor(dir.path(), false);
+    let outputs: Vec<Vec<Vec<u8>>> = ["1", "2", "3"]
+        .iter()
+        .map(|threads| {
+            let folder = dir.path().join(format!("threads-{threads}"));
+            std::fs::create_dir(&folder).expect("a folder");
+            let out = folder.join("out.gltf");
+            bake([
+                "--quiet",
+                "--target",
+                "baked-texture",
+                "--threads",
+                threads,
+                input.to_str().expect("UTF-8 path"),
+                out.to_str().expect("UTF-8 path"),
+            ])
+            .success();
+            ["gltf", "bin", "baked.png"]
+                .iter()
+                .map(|ext| std::fs::read(out.with_extension(ext)).expect("an output"))
+                .collect()
+        })
+        .collect();
+    assert!(outputs.iter().all(|o| o == &outputs[0]));
 }
