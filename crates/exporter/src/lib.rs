@@ -1,5 +1,6 @@
-//! Writes the result of a bake: the baked glTF (`.gltf` + `.bin`, or `.glb`) and the
-//! lightmap glTF, all through one output transaction ([`OutputSet`]). The last module of the
+//! Writes the result of a bake: the baked glTF (`.gltf` + `.bin`, or `.glb`), the
+//! lightmap glTF and the baked-texture glTF ([`stage_baked_texture_gltf`]: unlit, the bake
+//! as a base-colour texture), all through one output transaction ([`OutputSet`]). The last module of the
 //! pipeline (Goral et al. 1984, §3: the computed intensities are displayed), here written
 //! out for any glTF viewer. (The bake report's schema is `bake-job`'s: it is made of the
 //! bake's own result values, which this crate does not know.)
