@@ -167,13 +167,17 @@ pub struct Cli {
     pub lightmap_uv: UvMode,
 
     // ---- Output ----
-    /// What to write: the vertex bake, the lightmap bake, or both.
+    /// What to write: the vertex bake, the lightmap bake, both, or the baked-texture bake.
     ///
     /// `vertex`: OUT holds the element mesh with the radiosity in COLOR_0 (unlit). `lightmap`:
     /// OUT holds the input's polygons (not subdivided) with lit materials, TEXCOORD_1 and a
     /// MOZ_lightmap PNG (OUT's stem + .lightmap.png), plus OUT's stem + .lightmap.exr (linear
     /// float irradiance). `both`: OUT holds the vertex bake and OUT's stem + .lightmap.gltf (or
-    /// .glb) the lightmap bake, the images beside it.
+    /// .glb) the lightmap bake, the images beside it. `baked-texture`: OUT holds the input's
+    /// polygons with KHR_materials_unlit materials whose base-colour texture on TEXCOORD_1
+    /// (OUT's stem + .baked.png, sRGB) is what the surface shows, (ρ × H + e) × exposure, the
+    /// base-colour texture multiplied in per texel: any glTF viewer shows the bake as it is
+    /// (the --lightmap-* options set its texels).
     #[arg(long, value_enum, default_value_t = Target::Both, help_heading = "Output")]
     pub target: Target,
     /// Vertex values and lightmap texels: smoothed, or constant per element.

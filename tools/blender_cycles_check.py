@@ -1,7 +1,8 @@
 """Cycles renders of a bake, compared with the bake's numbers: run by tools/blender-cycles-check.
 
     blender -b --factory-startup --python-exit-code 1 --python tools/blender_cycles_check.py \
-        -- BAKED.gltf REPORT.json [--lightmap [--exr]] [--png OUT.png] [--width W]
+        -- BAKED.gltf REPORT.json [--lightmap [--exr] | --baked-texture] [--png OUT.png]
+        [--width W]
 
 Imports BAKED (a vertex bake written with --shading flat, or with --lightmap the lightmap bake
 beside it, BAKED being the .lightmap.gltf) with Blender's stock importer and replaces every
@@ -15,7 +16,11 @@ material by emission-only shading, so each pixel is exactly what the node set-up
                   --exr the lightmap EXR (UV map 1, Linear) × exposure instead, the README's
                   set-up (no 8-bit quantisation)
 
-then renders with Cycles from an orthographic camera looking straight down (a black world, no
+With --baked-texture (a bake written with --target baked-texture) the materials stay as
+Blender's importer makes them from KHR_materials_unlit (its emission-like set-up of the
+base-colour texture on the second UV map): nothing is set up, as for any user.
+
+It then renders with Cycles from an orthographic camera looking straight down (a black world, no
 lights, 16 samples, a 0.01-pixel filter, the "Standard" view transform: 8-bit sRGB of the
 linear value). At the centre of every upward-facing element the camera sees unobstructed
 (a ray cast finds its own surface there) and that lies at least a quarter texel from a texel
@@ -24,6 +29,10 @@ border, the pixel is compared with the bake's own numbers from REPORT:
   expected = baseColorFactor × texture(uv) × clamp(H × exposure, 0, 1)   (textured)
   expected = clamp(b × exposure, 0, 1)                                     (untextured, vertex)
   expected = baseColorFactor × clamp(H × exposure, 0, 1)                   (untextured, lightmap)
+  expected = clamp((ρ × H + e) × exposure, 0, 1)                         (--baked-texture)
+
+(--baked-texture compares with the element's ρ, the mean of a base-colour texture over it:
+meant for scenes without base-colour textures, whose ρ is the same at every point.)
 
 with H and b the element's `h` and `b`. Prints `CYCLES_CHECK {...}` (JSON: elements compared,
 the largest and mean difference in 8-bit levels) and exits 1 when the largest exceeds
@@ -59,7 +68,8 @@ def linear_to_srgb8(v):
 
 def parse_args():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
-    args = {"lightmap": False, "exr": False, "png": None, "width": 1200, "tolerance": 2.0}
+    args = {"lightmap": False, "exr": False, "baked_texture": False, "png": None,
+            "width": 1200, "tolerance": 2.0}
     positional = []
     i = 0
     while i < len(argv):
@@ -68,6 +78,8 @@ def parse_args():
             args["lightmap"] = True
         elif a == "--exr":
             args["exr"] = True
+        elif a == "--baked-texture":
+            args["baked_texture"] = True
         elif a in ("--png", "--width", "--tolerance"):
             i += 1
             args[a[2:]] = argv[i] if a == "--png" else float(argv[i])
@@ -201,6 +213,9 @@ def main():
     for obj in bpy.context.scene.objects:
         if obj.type != "MESH" or obj.active_material is None:
             continue
+        if args["baked_texture"]:
+            shading[obj.name] = (None, [1.0, 1.0, 1.0], False)
+            continue
         name = obj.active_material.name
         gm = gltf_materials.get(name) or gltf_materials.get(name.split(".")[0])
         if gm is None:
@@ -283,7 +298,10 @@ def main():
                 continue
         else:
             tex = [1.0, 1.0, 1.0]
-        if args["lightmap"] or textured:
+        if args["baked_texture"]:
+            expected = [min(max((e["rho"][k] * e["h"][k] + e["e"][k]) * exposure, 0.0), 1.0)
+                        for k in range(3)]
+        elif args["lightmap"] or textured:
             value = [min(max(h * exposure, 0.0), 1.0) for h in e["h"]]
             expected = [factor[k] * tex[k] * value[k] for k in range(3)]
         else:
@@ -298,6 +316,7 @@ def main():
         "file": args["gltf"],
         "lightmap": args["lightmap"],
         "image": ("exr" if args["exr"] else "png") if args["lightmap"] else None,
+        "baked_texture": args["baked_texture"],
         "compared": len(diffs),
         "max_levels": round(max(diffs), 3) if diffs else None,
         "mean_levels": round(sum(diffs) / len(diffs), 3) if diffs else None,

@@ -8,6 +8,7 @@
 mod common;
 
 mod alpha;
+mod baked_texture;
 mod blender_textures;
 mod cli_errors;
 mod compressed;

@@ -9,7 +9,7 @@ use common::{bake, bake_json, write_json};
 use serde_json::{json, Value};
 
 /// The IEC 61966-2-1 decoding, written out independently of the importer's.
-fn srgb_to_linear(v: f64) -> f64 {
+pub(crate) fn srgb_to_linear(v: f64) -> f64 {
     if v <= 0.04045 {
         v / 12.92
     } else {
@@ -18,7 +18,7 @@ fn srgb_to_linear(v: f64) -> f64 {
 }
 
 /// A PNG of `width` × `height` texels, `texel(x, y)` giving 8-bit sRGB.
-fn png(width: u32, height: u32, texel: impl Fn(u32, u32) -> [u8; 3]) -> Vec<u8> {
+pub(crate) fn png(width: u32, height: u32, texel: impl Fn(u32, u32) -> [u8; 3]) -> Vec<u8> {
     let img = image::RgbImage::from_fn(width, height, |x, y| image::Rgb(texel(x, y)));
     let mut bytes = std::io::Cursor::new(Vec::new());
     img.write_to(&mut bytes, image::ImageFormat::Png)
@@ -29,7 +29,7 @@ fn png(width: u32, height: u32, texel: impl Fn(u32, u32) -> [u8; 3]) -> Vec<u8> 
 /// A 10 × 10 m floor (y = 0, facing +y) with TEXCOORD_0 = ((x + 5) / 10, (z + 5) / 10), a
 /// point-less lit scene: an emissive panel above it lights it. `texture`: the PNG and whether
 /// the sampler filters NEAREST; `None` for an untextured material.
-fn floor_scene(factor: [f64; 3], texture: Option<(Vec<u8>, bool)>) -> Value {
+pub(crate) fn floor_scene(factor: [f64; 3], texture: Option<(Vec<u8>, bool)>) -> Value {
     let floor = [
         [-5.0f32, 0.0, -5.0],
         [-5.0, 0.0, 5.0],

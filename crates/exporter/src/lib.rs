@@ -1,5 +1,6 @@
-//! Writes the result of a bake: the baked glTF (`.gltf` + `.bin`, or `.glb`) and the
-//! lightmap glTF, all through one output transaction ([`OutputSet`]). The last module of the
+//! Writes the result of a bake: the baked glTF (`.gltf` + `.bin`, or `.glb`), the
+//! lightmap glTF and the baked-texture glTF ([`stage_baked_texture_gltf`]: unlit, the bake
+//! as a base-colour texture), all through one output transaction ([`OutputSet`]). The last module of the
 //! pipeline (Goral et al. 1984, §3: the computed intensities are displayed), here written
 //! out for any glTF viewer. (The bake report's schema is `bake-job`'s: it is made of the
 //! bake's own result values, which this crate does not know.)
@@ -18,6 +19,7 @@
 //! factor × texture × H, the reflected light with the texture's detail.
 
 mod assets;
+mod baked_texture;
 mod document;
 mod files;
 mod geometry;
@@ -32,6 +34,10 @@ pub use files::{
 pub use journal::{recover_interrupted_commits, Recovered};
 pub use same_file::{check_distinct, SameFile};
 
+pub use baked_texture::{
+    stage_baked_texture_gltf, surface_texels, BakedTextureBake, BakedTexturePaths,
+    BAKED_TEXTURE_EXTRAS_KEY,
+};
 pub use lightmap_gltf::{
     stage_lightmap_gltf, write_lightmap_gltf, LightmapBake, LightmapPaths, LightmapWritten,
     LIGHTMAP_EXTENSION, LIGHTMAP_EXTRAS_KEY, LIGHTMAP_UNITS,

@@ -100,7 +100,7 @@ impl LightmapPaths {
 }
 
 /// `path` for k = 0; `<dir>/<stem>-<k>.<ext>` for `<dir>/<stem>.<ext>` otherwise.
-fn numbered(path: &Path, k: usize) -> Result<PathBuf, ExportError> {
+pub(crate) fn numbered(path: &Path, k: usize) -> Result<PathBuf, ExportError> {
     if k == 0 {
         return Ok(path.to_path_buf());
     }
@@ -114,7 +114,7 @@ fn numbered(path: &Path, k: usize) -> Result<PathBuf, ExportError> {
 }
 
 /// `<dir>/<stem>.<suffix>` for `<dir>/<stem>.<ext>`.
-fn sibling(path: &Path, suffix: &str) -> Result<PathBuf, ExportError> {
+pub(crate) fn sibling(path: &Path, suffix: &str) -> Result<PathBuf, ExportError> {
     let stem = path
         .file_stem()
         .ok_or_else(|| ExportError::UnsupportedExtension(path.to_path_buf()))?;
@@ -173,14 +173,7 @@ pub fn stage_lightmap_gltf(
     let format = OutputFormat::from_path(&paths.gltf)?;
     let scene = bake.scene;
     let lightmap = bake.lightmap;
-    if lightmap.charts.len() != scene.polygons.len() {
-        return Err(ExportError::InvalidData(format!(
-            "{} lightmap charts for {} polygons",
-            lightmap.charts.len(),
-            scene.polygons.len()
-        )));
-    }
-    check_layout(&scene.layout)?;
+    let mut writer = start_document(scene, lightmap)?;
     let encode = |e: lightmap::LightmapError| ExportError::Encode {
         what: "lightmap",
         message: e.to_string(),
@@ -200,9 +193,6 @@ pub fn stage_lightmap_gltf(
         exr_paths.push(paths.atlas_exr(k)?);
     }
 
-    let mut writer = DocumentWriter::default();
-    writer.root.asset.generator = Some(format!("bake {}", env!("CARGO_PKG_VERSION")));
-    writer.add_layout(&scene.layout);
     let mut textures = Vec::with_capacity(atlases.len());
     for (k, png) in pngs.iter().enumerate() {
         let name = if k == 0 {
@@ -210,73 +200,27 @@ pub fn stage_lightmap_gltf(
         } else {
             format!("lightmap-{k}")
         };
-        let image = match format {
-            OutputFormat::Gltf => json::Image {
-                buffer_view: None,
-                mime_type: Some(json::image::MimeType("image/png".into())),
-                name: Some(name),
-                uri: Some(files::uri_for_file_name(&png_paths[k])),
-                extensions: None,
-                extras: Default::default(),
-            },
-            OutputFormat::Glb => {
-                let view = embed(&mut writer, &png.bytes);
-                json::Image {
-                    buffer_view: Some(view),
-                    mime_type: Some(json::image::MimeType("image/png".into())),
-                    name: Some(name),
-                    uri: None,
-                    extensions: None,
-                    extras: Default::default(),
-                }
-            }
-        };
+        let image = png_image(&mut writer, format, name, &png.bytes, &png_paths[k]);
         textures.push(add_texture(&mut writer.root, image));
     }
     let mut assets = Assets::new(&scene.authored);
-    // (Scene material, atlas) → (output material, whether its textures read the input's
-    // TEXCOORD_1, which moves to TEXCOORD_2 because the lightmap takes TEXCOORD_1).
-    let mut materials: BTreeMap<(usize, u32), (Index<json::Material>, UvNeeds)> = BTreeMap::new();
-    for ((node, mesh), primitives) in group_polygons(scene) {
-        let space = NodeSpace::new(&scene.layout.nodes[node].world, node)?;
-        let mut output = Vec::with_capacity(primitives.len());
-        for (primitive, polygons) in primitives {
-            let material_index = scene.layout.meshes[mesh].primitives[primitive].material;
-            // A primitive is drawn with one lightmap: its polygons share an atlas.
-            let atlas = polygons.first().map_or(0, |&p| lightmap.charts[p].atlas);
-            if polygons.iter().any(|&p| lightmap.charts[p].atlas != atlas) {
-                return Err(ExportError::InvalidData(format!(
-                    "node {node} mesh {mesh} primitive {primitive}: its polygons are in several lightmap atlases"
-                )));
-            }
+    add_meshes(
+        &mut writer,
+        scene,
+        lightmap,
+        false,
+        |writer, material_index, atlas| {
             let (texture, scale) = (textures[atlas as usize], pngs[atlas as usize].scale);
-            let (material, needs) = match materials.get(&(material_index, atlas)) {
-                Some(&m) => m,
-                None => {
-                    let source = scene.materials.get(material_index).ok_or_else(|| {
-                        ExportError::InvalidData(format!("missing material {material_index}"))
-                    })?;
-                    let made = match assets.material(&mut writer, material_index, false)? {
-                        Some(authored) => kept_material(authored, texture, scale),
-                        None => (lit_material(source, texture, scale), UvNeeds::default()),
-                    };
-                    let m = (writer.root.push(made.0), made.1);
-                    materials.insert((material_index, atlas), m);
-                    m
-                }
+            let source = scene.materials.get(material_index).ok_or_else(|| {
+                ExportError::InvalidData(format!("missing material {material_index}"))
+            })?;
+            let made = match assets.material(writer, material_index, false)? {
+                Some(authored) => kept_material(authored, texture, scale),
+                None => (lit_material(source, texture, scale), UvNeeds::default()),
             };
-            let data = primitive_data(scene, lightmap, &space, &polygons, needs)?;
-            output.push(add_primitive(&mut writer, &data, material));
-        }
-        let mesh_index = writer.root.push(json::Mesh {
-            extensions: None,
-            extras: Default::default(),
-            name: scene.layout.meshes[mesh].name.clone(),
-            primitives: output,
-            weights: None,
-        });
-        writer.root.nodes[node].mesh = Some(mesh_index);
-    }
+            Ok((writer.root.push(made.0), made.1))
+        },
+    )?;
     if bake.keep_lights && !scene.lights.is_empty() {
         add_lights(&mut writer.root, scene);
     }
@@ -327,27 +271,132 @@ pub fn stage_lightmap_gltf(
             staged.push((png_paths[k].as_path(), &pngs[k].bytes));
         }
     }
-    let written = match format {
-        OutputFormat::Gltf => {
-            let bin_path = files::bin_path_for(&paths.gltf)?;
-            let (root, bin) = writer.finish(Some(files::uri_for_file_name(&bin_path)));
-            let json = encode_json(&root)?;
-            staged.push((bin_path.as_path(), &bin));
-            staged.push((paths.gltf.as_path(), &json));
-            stage_all(set, &staged)?
-        }
-        OutputFormat::Glb => {
-            let (root, bin) = writer.finish(None);
-            let glb = encode_glb(&root, &bin)?;
-            staged.push((paths.gltf.as_path(), &glb));
-            stage_all(set, &staged)?
-        }
-    };
+    let written = stage_document(set, &paths.gltf, format, writer, staged)?;
     Ok(LightmapWritten {
         png_scale: pngs[0].scale,
         png_scales: scales,
         files: written,
     })
+}
+
+/// A document holding `scene`'s nodes and scenes, for polygons laid out by `lightmap`.
+pub(crate) fn start_document(
+    scene: &Scene,
+    lightmap: &Lightmap,
+) -> Result<DocumentWriter, ExportError> {
+    if lightmap.charts.len() != scene.polygons.len() {
+        return Err(ExportError::InvalidData(format!(
+            "{} lightmap charts for {} polygons",
+            lightmap.charts.len(),
+            scene.polygons.len()
+        )));
+    }
+    check_layout(&scene.layout)?;
+    let mut writer = DocumentWriter::default();
+    writer.root.asset.generator = Some(format!("bake {}", env!("CARGO_PKG_VERSION")));
+    writer.add_layout(&scene.layout);
+    Ok(writer)
+}
+
+/// Every baked node's mesh: per input primitive instance its polygons with `TEXCOORD_1` into
+/// their atlas, and the material `material(writer, input material, atlas)` makes (asked once
+/// per pair). `plain`: no input `COLOR_0` (a material that already holds it, or one that
+/// ignores it). A primitive's polygons must share an atlas.
+pub(crate) fn add_meshes(
+    writer: &mut DocumentWriter,
+    scene: &Scene,
+    lightmap: &Lightmap,
+    plain: bool,
+    mut material: impl FnMut(
+        &mut DocumentWriter,
+        usize,
+        u32,
+    ) -> Result<(Index<json::Material>, UvNeeds), ExportError>,
+) -> Result<(), ExportError> {
+    // (Scene material, atlas) → (output material, what its primitives need).
+    let mut materials: BTreeMap<(usize, u32), (Index<json::Material>, UvNeeds)> = BTreeMap::new();
+    for ((node, mesh), primitives) in group_polygons(scene) {
+        let space = NodeSpace::new(&scene.layout.nodes[node].world, node)?;
+        let mut output = Vec::with_capacity(primitives.len());
+        for (primitive, polygons) in primitives {
+            let material_index = scene.layout.meshes[mesh].primitives[primitive].material;
+            // A primitive is drawn with one lightmap: its polygons share an atlas.
+            let atlas = polygons.first().map_or(0, |&p| lightmap.charts[p].atlas);
+            if polygons.iter().any(|&p| lightmap.charts[p].atlas != atlas) {
+                return Err(ExportError::InvalidData(format!(
+                    "node {node} mesh {mesh} primitive {primitive}: its polygons are in several lightmap atlases"
+                )));
+            }
+            let (index, mut needs) = match materials.get(&(material_index, atlas)) {
+                Some(&m) => m,
+                None => {
+                    let m = material(writer, material_index, atlas)?;
+                    materials.insert((material_index, atlas), m);
+                    m
+                }
+            };
+            needs.plain |= plain;
+            let data = primitive_data(scene, lightmap, &space, &polygons, needs)?;
+            output.push(add_primitive(writer, &data, index));
+        }
+        let mesh_index = writer.root.push(json::Mesh {
+            extensions: None,
+            extras: Default::default(),
+            name: scene.layout.meshes[mesh].name.clone(),
+            primitives: output,
+            weights: None,
+        });
+        writer.root.nodes[node].mesh = Some(mesh_index);
+    }
+    Ok(())
+}
+
+/// A PNG image: beside a `.gltf` (its file name as the URI), inside a `.glb`.
+pub(crate) fn png_image(
+    writer: &mut DocumentWriter,
+    format: OutputFormat,
+    name: String,
+    bytes: &[u8],
+    path: &Path,
+) -> json::Image {
+    let (buffer_view, uri) = match format {
+        OutputFormat::Gltf => (None, Some(files::uri_for_file_name(path))),
+        OutputFormat::Glb => (Some(embed(writer, bytes)), None),
+    };
+    json::Image {
+        buffer_view,
+        mime_type: Some(json::image::MimeType("image/png".into())),
+        name: Some(name),
+        uri,
+        extensions: None,
+        extras: Default::default(),
+    }
+}
+
+/// Stages `images` (written beside a `.gltf` only), then the `.bin` and `.gltf`, or the `.glb`;
+/// returns every target in that order.
+pub(crate) fn stage_document(
+    set: &mut OutputSet,
+    gltf: &Path,
+    format: OutputFormat,
+    writer: DocumentWriter,
+    images: Vec<(&Path, &[u8])>,
+) -> Result<Vec<PathBuf>, ExportError> {
+    let mut written = stage_all(set, &images)?;
+    match format {
+        OutputFormat::Gltf => {
+            let bin_path = files::bin_path_for(gltf)?;
+            let (root, bin) = writer.finish(Some(files::uri_for_file_name(&bin_path)));
+            let json = encode_json(&root)?;
+            written.extend(stage_all(set, &[(&bin_path, &bin), (gltf, &json)])?);
+        }
+        OutputFormat::Glb => {
+            let (root, bin) = writer.finish(None);
+            let glb = encode_glb(&root, &bin)?;
+            written.extend(stage_all(set, &[(gltf, &glb)])?);
+        }
+    }
+    Ok(written)
 }
 
 /// The scene's lights as `KHR_lights_punctual`, each on its node (same node indices).
@@ -437,7 +486,7 @@ fn extras(
     })
 }
 
-fn add_texture(root: &mut json::Root, image: json::Image) -> Index<json::Texture> {
+pub(crate) fn add_texture(root: &mut json::Root, image: json::Image) -> Index<json::Texture> {
     use json::texture::{MagFilter, MinFilter, WrappingMode};
     let image = root.push(image);
     let sampler = root.push(json::texture::Sampler {
@@ -530,17 +579,20 @@ fn kept_material(
         UvNeeds {
             second_set,
             normal_set,
+            plain: false,
         },
     )
 }
 
 /// What a kept material needs of its primitives beyond positions, normals and the lightmap.
 #[derive(Clone, Copy, Debug, Default)]
-struct UvNeeds {
+pub(crate) struct UvNeeds {
     /// Its textures read the input's TEXCOORD_1 (written as TEXCOORD_2).
     second_set: bool,
     /// Its normal map reads this input TEXCOORD set: the primitive gets `TANGENT`s.
     normal_set: Option<u32>,
+    /// Leave out the input's `COLOR_0` (the baked texture already holds it).
+    plain: bool,
 }
 
 /// The tangent (xyz, handedness w) of a planar polygon for a normal map: the direction of
@@ -630,17 +682,16 @@ fn primitive_data(
         input_uv0: has_set(0).then(Vec::new),
         input_uv1: (second_set && has_set(1)).then(Vec::new),
         tangents: needs.normal_set.map(|_| Vec::new()),
-        colors: polygons
-            .iter()
-            .all(|&p| {
+        colors: (!needs.plain
+            && polygons.iter().all(|&p| {
                 scene
                     .uvs
                     .get(p)
                     .and_then(Option::as_ref)
                     .and_then(|uv| uv.triangles.first())
                     .is_some_and(|t| t.color.is_some())
-            })
-            .then(Vec::new),
+            }))
+        .then(Vec::new),
         indices: Vec::new(),
     };
     if second_set && data.input_uv1.is_none() {
@@ -790,7 +841,7 @@ impl NodeSpace {
 }
 
 /// Stages every file in order; returns their targets.
-fn stage_all(
+pub(crate) fn stage_all(
     set: &mut OutputSet,
     files_to_write: &[(&Path, &[u8])],
 ) -> Result<Vec<PathBuf>, ExportError> {

@@ -48,6 +48,9 @@ pub enum Target {
     Lightmap,
     /// The vertex bake as OUT and the lightmap bake beside it.
     Both,
+    /// The baked-texture bake only, as OUT: the lightmap bake's polygons with unlit
+    /// materials whose base-colour texture (`TEXCOORD_1`) is ρ × H + e per texel.
+    BakedTexture,
 }
 
 /// `--exposure`: `auto`, or a number (checked to be finite and ≥ 0 before the bake).

@@ -1,7 +1,7 @@
 //! The output set of a bake: which files it writes, the checks before any work (every file
 //! writable where it is named, none an input or another output), and staging the two bakes.
 
-use crate::{internal, Failure, Job, Target};
+use crate::{internal, Failure, Job, Target, DEFAULT_MAX_REFLECTANCE};
 use anyhow::{anyhow, Context};
 use std::path::{Path, PathBuf};
 
@@ -22,14 +22,22 @@ fn lightmap_paths(job: &Job) -> anyhow::Result<exporter::LightmapPaths> {
     .with_context(|| format!("cannot write {}", job.output.display()))
 }
 
+/// The baked-texture bake's files (`--target baked-texture`: OUT itself).
+fn baked_paths(job: &Job) -> anyhow::Result<exporter::BakedTexturePaths> {
+    exporter::BakedTexturePaths::new(&job.output)
+        .with_context(|| format!("cannot write {}", job.output.display()))
+}
+
 /// Every file this bake may write, in the order they are renamed into place (OUT last).
 fn output_files(job: &Job) -> anyhow::Result<Vec<PathBuf>> {
     let mut files: Vec<PathBuf> = job.save_links.iter().cloned().collect();
     files.extend(job.report.iter().cloned());
-    if job.target != Target::Vertex {
-        files.extend(lightmap_paths(job)?.files()?);
+    match job.target {
+        Target::Vertex => {}
+        Target::BakedTexture => files.extend(baked_paths(job)?.files()?),
+        Target::Lightmap | Target::Both => files.extend(lightmap_paths(job)?.files()?),
     }
-    if job.target != Target::Lightmap {
+    if matches!(job.target, Target::Vertex | Target::Both) {
         files.extend(
             exporter::gltf_files(&job.output)
                 .with_context(|| format!("cannot write {}", job.output.display()))?,
@@ -88,6 +96,18 @@ impl Plan {
         let Some(built) = lightmap.filter(|b| !b.more.is_empty()) else {
             return Ok(self);
         };
+        if job.target == Target::BakedTexture {
+            let paths = baked_paths(job).map_err(internal)?;
+            let with_png = paths
+                .files()
+                .map_err(|e| internal(anyhow!(e)))?
+                .contains(&paths.png);
+            for k in (1..=built.more.len()).filter(|_| with_png) {
+                self.files
+                    .push(paths.atlas_png(k).map_err(|e| internal(anyhow!(e)))?);
+            }
+            return self.checked(scene);
+        }
         let paths = lightmap_paths(job).map_err(internal)?;
         let with_png = paths
             .files()
@@ -101,6 +121,11 @@ impl Plan {
                     .push(paths.atlas_png(k).map_err(|e| internal(anyhow!(e)))?);
             }
         }
+        self.checked(scene)
+    }
+
+    /// Self, once no output is an input or another output.
+    fn checked(self, scene: &importer::Scene) -> Result<Plan, Failure> {
         let mut all_inputs = self.inputs.clone();
         all_inputs.extend(scene.input_files.iter().cloned());
         exporter::check_distinct(&self.files, &all_inputs).map_err(same_file)?;
@@ -127,13 +152,30 @@ pub(crate) fn stage_bakes(
         exposure,
     };
     let mut vertex_files = exporter::OutputSet::new();
-    if job.target != Target::Lightmap {
+    if matches!(job.target, Target::Vertex | Target::Both) {
         exporter::stage_gltf(&mut vertex_files, &job.output, &vertex_bake)
             .with_context(|| format!("cannot write {}", job.output.display()))
             .map_err(internal)?;
     }
     let mut lightmap_files = exporter::OutputSet::new();
-    if let Some(built) = lightmap {
+    if let (Some(built), Target::BakedTexture) = (lightmap, job.target) {
+        let paths = baked_paths(job).map_err(internal)?;
+        let baked = exporter::BakedTextureBake {
+            scene,
+            lightmap: built,
+            exposure,
+            ceiling: Some(bake_core::REFLECTS_ALL)
+                .zip(
+                    job.request
+                        .max_reflectance
+                        .or(Some(DEFAULT_MAX_REFLECTANCE)),
+                )
+                .filter(|&(_, to)| to < 1.0),
+        };
+        exporter::stage_baked_texture_gltf(&mut lightmap_files, &paths, &baked)
+            .with_context(|| format!("cannot write {}", paths.gltf.display()))
+            .map_err(internal)?;
+    } else if let Some(built) = lightmap {
         let paths = lightmap_paths(job).map_err(internal)?;
         let lightmap_bake = exporter::LightmapBake {
             scene,

@@ -117,34 +117,43 @@ pub fn encode_png(lightmap: &Lightmap) -> Result<PngLightmap, LightmapError> {
 
 /// [`encode_png`] of one atlas ([`Lightmap::atlas`]), at its own [`png_scale`].
 pub fn encode_png_atlas(lightmap: AtlasRef) -> Result<PngLightmap, LightmapError> {
-    use image::ImageEncoder;
     let (scale, clipped, covered) = png_scale(lightmap);
-    let bytes: Vec<u8> = lightmap
-        .texels
-        .iter()
-        .flat_map(|t| {
-            t.map(|v| {
-                let encoded = linear_to_srgb((f64::from(v) / scale).clamp(0.0, 1.0));
-                (encoded * 255.0).round() as u8
-            })
-        })
-        .collect();
-    let mut png = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut png)
-        .write_image(
-            &bytes,
-            lightmap.width,
-            lightmap.height,
-            image::ExtendedColorType::Rgb8,
-        )
-        .map_err(|e| LightmapError::Encode {
-            what: "PNG",
-            message: e.to_string(),
-        })?;
+    let png = encode_srgb_png(lightmap.width, lightmap.height, lightmap.texels, |v| {
+        f64::from(v) / scale
+    })?;
     Ok(PngLightmap {
         bytes: png,
         scale,
         clipped,
         covered,
     })
+}
+
+/// An 8-bit RGB PNG of linear `texels` (row-major from the top-left), each band mapped by
+/// `to_unit` (a scale or an exposure), clamped to [0, 1] and sRGB-encoded
+/// ([`linear_to_srgb`], rounded to the nearest level).
+pub fn encode_srgb_png(
+    width: u32,
+    height: u32,
+    texels: &[[f32; 3]],
+    to_unit: impl Fn(f32) -> f64,
+) -> Result<Vec<u8>, LightmapError> {
+    use image::ImageEncoder;
+    let bytes: Vec<u8> = texels
+        .iter()
+        .flat_map(|t| {
+            t.map(|v| {
+                let encoded = linear_to_srgb(to_unit(v).clamp(0.0, 1.0));
+                (encoded * 255.0).round() as u8
+            })
+        })
+        .collect();
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(&bytes, width, height, image::ExtendedColorType::Rgb8)
+        .map_err(|e| LightmapError::Encode {
+            what: "PNG",
+            message: e.to_string(),
+        })?;
+    Ok(png)
 }

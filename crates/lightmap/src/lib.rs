@@ -50,8 +50,8 @@ mod raster;
 pub use authored::{AuthoredUv, UvDecision, UvMode, MIN_PADDING, OWN_ATLAS, OWN_REGION};
 pub use chart::{PADDING, PAIR_GAP};
 pub use encode::{
-    encode_exr, encode_exr_atlas, encode_png, encode_png_atlas, linear_to_srgb, png_scale,
-    srgb_to_linear, PngLightmap, EXR_COMMENT, PNG_HEADROOM, PNG_PERCENTILE,
+    encode_exr, encode_exr_atlas, encode_png, encode_png_atlas, encode_srgb_png, linear_to_srgb,
+    png_scale, srgb_to_linear, PngLightmap, EXR_COMMENT, PNG_HEADROOM, PNG_PERCENTILE,
 };
 pub use group::{CHART_CONE_DEGREES, GROUPED_ABOVE};
 pub use raster::DILATION_RADIUS;
@@ -1170,6 +1170,27 @@ impl Lightmap {
     /// Every atlas, the first one first.
     pub fn atlases(&self) -> Vec<AtlasRef<'_>> {
         (0..=self.more.len()).map(|k| self.atlas(k)).collect()
+    }
+
+    /// The surface point texel `index` (row-major) of atlas `k` shows: its polygon and the
+    /// weights of that polygon's corners (in vertex order; a triangle's fourth is 0) at the
+    /// chart point nearest the texel's centre — the point its H was reconstructed at for a
+    /// chart texel, and near the chart texel a gutter texel copies. `None` for unused texels.
+    /// Lets a caller colour texels by what else varies over the surface (textures).
+    pub fn texel_point(&self, k: usize, index: usize) -> Option<(usize, [f64; 4])> {
+        let atlas = self.atlas(k);
+        let polygon = match atlas.coverage.get(index)? {
+            Texel::Unused => return None,
+            Texel::Chart(p) | Texel::Gutter(p) => *p as usize,
+        };
+        let chart = self.charts.get(polygon)?;
+        let uv: Vec<DVec2> = chart.uv.iter().map(|p| DVec2::new(p[0], p[1])).collect();
+        if uv.len() < 3 {
+            return None;
+        }
+        let width = atlas.width as usize;
+        let c = DVec2::new((index % width) as f64 + 0.5, (index / width) as f64 + 0.5);
+        Some((polygon, raster::chart_weights(c, &uv)))
     }
 
     /// Bilinear sample at texture coordinate `uv` (texel centres at (i + ½)/width, clamped to

@@ -152,16 +152,27 @@ pub(crate) fn chart_value(
     source: Source,
 ) -> [f64; 3] {
     let field = &fields[polygon];
-    let corners = &field.corners;
+    let w = chart_weights(c, uv);
+    let point = field
+        .corners
+        .iter()
+        .zip(w)
+        .fold(DVec2::ZERO, |sum, (&corner, w)| sum + corner * w);
+    source.at_within(polygon, field, point).map(|v| v.max(0.0))
+}
+
+/// The weights of a chart's corners (3 or 4; a triangle's fourth is 0) at the chart point
+/// nearest texel-space point `c`, through the glTF triangles (v0 v1 v2) and (v0 v2 v3): the
+/// same corner weights give the surface point, in any space the polygon's corners are in.
+pub(crate) fn chart_weights(c: DVec2, uv: &[DVec2]) -> [f64; 4] {
     let (first, d1) = nearest_in_triangle(c, uv[0], uv[1], uv[2]);
-    let mut point = corners[0] * first[0] + corners[1] * first[1] + corners[2] * first[2];
     if uv.len() == 4 {
         let (second, d2) = nearest_in_triangle(c, uv[0], uv[2], uv[3]);
         if d2 < d1 {
-            point = corners[0] * second[0] + corners[2] * second[1] + corners[3] * second[2];
+            return [second[0], 0.0, second[1], second[2]];
         }
     }
-    source.at_within(polygon, field, point).map(|v| v.max(0.0))
+    [first[0], first[1], first[2], 0.0]
 }
 
 /// Reconstructs one region: footprints first, then the gutter by nearest footprint texel

@@ -148,6 +148,7 @@ impl Baked<'_> {
                 Target::Vertex => "vertex",
                 Target::Lightmap => "lightmap",
                 Target::Both => "both",
+                Target::BakedTexture => "baked-texture",
             },
             "lightmap_texel": job
                 .lightmap
