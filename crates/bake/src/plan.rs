@@ -279,8 +279,18 @@ pub fn costs(settings: &Settings, scene: &SceneSummary) -> Costs {
         hierarchical_refines,
         occluded: scene.occluded,
         samples: settings.visibility_samples,
-        max_error: settings.max_error,
+        max_error: links_error(settings, scene.rho_bound),
     })
+}
+
+/// The `--max-error` the hierarchy's links are built for: an explicit `--link-tolerance` t is
+/// the E whose derived tolerance it equals, `ε / B̄ = E / a` with the amplification a of a grey
+/// scene of the reflectance bound, `1 / (1 − ρ)` (at most [`transport::MAX_AMPLIFICATION`]).
+fn links_error(settings: &Settings, rho_bound: f64) -> f64 {
+    match settings.link_tolerance {
+        Some(t) => t * (1.0 / (1.0 - rho_bound)).clamp(1.0, transport::MAX_AMPLIFICATION),
+        None => settings.max_error,
+    }
 }
 
 /// Which transport `settings` asks for on `scene`, and why.
