@@ -366,8 +366,8 @@ fn insert_stage(bake: &mut Bake, name: &'static str, seconds: f64, after: Option
 /// Whether the plan of `scene`'s grids is the hierarchy `auto` gives a small scene with
 /// occluders (the plan decides, so the fallback follows its rule).
 fn small_occluded_auto(scene: &Scene, settings: &Settings) -> Result<bool, BakeError> {
-    let elements = mesher::element_count(&scene.polygons, settings.subdivision)?;
-    let summary = scene_summary(scene, settings, elements)?;
+    let occluders = Occluders::new(&scene.polygons)?;
+    let summary = scene_summary(scene, settings, None, &occluders)?;
     Ok(Plan::new(settings, &summary, &mut Vec::new())?.small_occluded())
 }
 
@@ -409,7 +409,7 @@ pub(crate) fn run_mesh(
 ) -> Result<Bake, BakeError> {
     let mut stages = Stages::new();
     let mut warnings = Vec::new();
-    let (mesh, plan) = plan_and_mesh(scene, settings, given, &mut warnings)?;
+    let (mesh, plan) = plan_and_mesh(scene, settings, given, occluders, &mut warnings)?;
     let (mut rho, emission) = element_values(scene, &mesh);
     warnings.extend(limit_reflectance(
         scene,
@@ -506,17 +506,15 @@ fn plan_and_mesh(
     scene: &Scene,
     settings: &Settings,
     given: Option<ElementMesh>,
+    occluders: &Occluders,
     warnings: &mut Vec<String>,
 ) -> Result<(ElementMesh, Plan), BakeError> {
-    let elements = match &given {
-        Some(mesh) => mesh.elements.len() as u64,
-        None => mesher::element_count(&scene.polygons, settings.subdivision)?,
-    };
+    let refined = given.as_ref().map(|mesh| mesh.elements.len() as u64);
     // A refined mesh is planned for like the grids: both transports take it (the hierarchical
     // one's trees continue below the grid elements into their quarters).
     let plan = Plan::new(
         settings,
-        &scene_summary(scene, settings, elements)?,
+        &scene_summary(scene, settings, refined, occluders)?,
         warnings,
     )?;
     let mesh = match given {
@@ -526,21 +524,23 @@ fn plan_and_mesh(
     Ok((mesh, plan))
 }
 
-/// What the plan needs of `scene` meshed into `elements` elements.
+/// What the plan needs of `scene` on its grids, or on a refined mesh of `refined` elements.
 fn scene_summary(
     scene: &Scene,
     settings: &Settings,
-    elements: u64,
+    refined: Option<u64>,
+    occluders: &Occluders,
 ) -> Result<SceneSummary, BakeError> {
-    // Only a scene the dense transport could take needs to know whether it has occluders
-    // (the pair test stops at the first occludable pair).
-    let occluded = elements <= DENSE_AUTO_MAX as u64
-        && settings.transport == TransportKind::Auto
-        && scene_occluded(scene)?;
     // The grids' elements, which the transport is chosen for (a refined mesh has more).
     let grid_elements = mesher::element_count(&scene.polygons, settings.subdivision)?;
+    // Only a scene the dense transport could take needs to know whether it has occluders
+    // (the pair test stops at the first occludable pair); decided on the grids, as the
+    // transport is, so that every solve of a refining bake plans alike.
+    let occluded = grid_elements <= DENSE_AUTO_MAX as u64
+        && settings.transport == TransportKind::Auto
+        && scene_occluded(occluders);
     Ok(SceneSummary {
-        elements,
+        elements: refined.unwrap_or(grid_elements),
         grid_elements,
         lights: !scene.lights.is_empty(),
         rho_bound: scene_rho_bound(scene, settings.max_reflectance),
@@ -549,15 +549,15 @@ fn scene_summary(
     })
 }
 
-/// Whether some polygon of `scene` can come between two others (visibility's conservative
-/// test, cut-outs ignored: they only open what could be blocked).
-fn scene_occluded(scene: &Scene) -> Result<bool, BakeError> {
-    let occluders = Occluders::new(&scene.polygons)?;
-    let p = scene.polygons.len();
-    Ok((0..p).any(|i| {
+/// Whether some polygon of the scene `occluders` was made from can come between two others
+/// (visibility's conservative test; cut-outs play no part in it: they only open what could
+/// be blocked).
+fn scene_occluded(occluders: &Occluders) -> bool {
+    let p = occluders.len();
+    (0..p).any(|i| {
         let a = occluders.polygon(i);
         (i + 1..p).any(|j| occluders.can_occlude(&a, &occluders.polygon(j)))
-    }))
+    })
 }
 
 /// Punctual lights: E per element, its irradiance E/π in b's unit (a diffuse surface under

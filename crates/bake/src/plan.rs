@@ -140,12 +140,12 @@ impl Plan {
     /// twice the grid and at least [`OCCLUDED_MAX_ELEMENTS`] for a small scene on the hierarchy
     /// (`auto`), else [`Settings::element_budget`]'s default.
     pub fn element_budget(&self, grid: usize) -> u64 {
-        match self.settings.max_elements {
-            None if self.small => OCCLUDED_MAX_ELEMENTS.max(2 * grid as u64),
-            _ => self
-                .settings
-                .element_budget(grid, self.transport.kind == TransportKind::Hierarchical),
-        }
+        budget(
+            &self.settings,
+            grid as u64,
+            self.transport.kind == TransportKind::Hierarchical,
+            self.small,
+        )
     }
 
     /// The transport and why.
@@ -258,13 +258,10 @@ pub fn costs(settings: &Settings, scene: &SceneSummary) -> Costs {
         && !settings.save_links
         && settings.load_links.is_none()
         && (settings.refine_smooth() || scene.lights);
-    let dense_budget = settings.element_budget(grid as usize, false);
+    let dense_budget = budget(settings, grid, false, false);
     let dense_refines = grows && dense_budget > grid;
     let small = grid <= SMALL_SCENE_ELEMENTS as u64;
-    let hierarchical_budget = match settings.max_elements {
-        None if small => OCCLUDED_MAX_ELEMENTS.max(2 * grid),
-        _ => settings.element_budget(grid as usize, true),
-    };
+    let hierarchical_budget = budget(settings, grid, true, small);
     let hierarchical_refines = grows
         && (small || settings.refine_requested || settings.max_elements.is_some())
         && hierarchical_budget > grid;
@@ -281,6 +278,16 @@ pub fn costs(settings: &Settings, scene: &SceneSummary) -> Costs {
         samples: settings.visibility_samples,
         max_error: links_error(settings, scene.rho_bound),
     })
+}
+
+/// Refinement's element budget from `grid` elements: `--max-elements`, else twice the grid and
+/// at least [`OCCLUDED_MAX_ELEMENTS`] for a `small` scene on the hierarchy (`auto`), else
+/// [`Settings::element_budget`]'s default.
+fn budget(settings: &Settings, grid: u64, hierarchical: bool, small: bool) -> u64 {
+    match settings.max_elements {
+        None if hierarchical && small => OCCLUDED_MAX_ELEMENTS.max(2 * grid),
+        _ => settings.element_budget(grid as usize, hierarchical),
+    }
 }
 
 /// The `--max-error` the hierarchy's links are built for: an explicit `--link-tolerance` t is
