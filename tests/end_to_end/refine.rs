@@ -418,15 +418,19 @@ fn the_budget_stops_refinement_and_says_where() {
 }
 
 /// With the preset's defaults (no target asked for) a budget that stops refinement is said in
-/// the report only; the same bake with `--max-elements` given warns (above).
+/// the report only; the same bake with `--max-elements` given warns (above). (The Cornell box:
+/// its blocks cast shadows, so it is refined from its grid; the cube starts finer, below.)
 #[test]
 fn the_default_budget_stops_quietly() {
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let (out, report) = (dir.path().join("cube.gltf"), dir.path().join("cube.json"));
+    let (out, report) = (
+        dir.path().join("cornell.gltf"),
+        dir.path().join("cornell.json"),
+    );
     let run = bake_default_in(
         None,
         [
-            fixture("cube.gltf").as_os_str(),
+            fixture("cornell.gltf").as_os_str(),
             out.as_os_str(),
             "--target".as_ref(),
             "vertex".as_ref(),
@@ -502,4 +506,68 @@ fn refinement_options_are_checked() {
         "{saved:?}"
     );
     assert!(!out.exists() && !links.exists());
+}
+
+/// Smooth light starts finer instead of refining (issue 31): the cube (nothing occludes, no
+/// punctual light) is baked by default on a uniform grid as fine as refinement's budget
+/// allows, unrefined, and the report says why; the same grid asked for explicitly
+/// (`--max-element-size`) gives the same solution, so the rule only chose the grid. With an
+/// element size given, the preset's refinement runs as before.
+#[test]
+fn smooth_light_starts_finer_instead_of_refining() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let bake = |name: &str, extra: &[&str]| -> serde_json::Value {
+        let (out, report) = (
+            dir.path().join(format!("{name}.gltf")),
+            dir.path().join(format!("{name}.json")),
+        );
+        let mut args: Vec<std::ffi::OsString> = vec![
+            fixture("cube.gltf").into(),
+            out.into(),
+            "--target".into(),
+            "vertex".into(),
+            "--report".into(),
+            report.clone().into(),
+        ];
+        args.extend(extra.iter().map(std::ffi::OsString::from));
+        let run = bake_default_in(None, args);
+        assert_eq!(run.code, Some(0), "{}", run.stderr);
+        let text = std::fs::read_to_string(&report).expect("report");
+        serde_json::from_str(&text).expect("json")
+    };
+    let default = bake("default", &[]);
+    let r = &default["refinement"];
+    let elements = r["elements_after"].as_u64().expect("elements");
+    let budget = r["budget"].as_u64().expect("budget");
+    // The grid is the finest within the budget: 25 × 25 per wall (26 × 26 would pass 4 000).
+    assert_eq!((elements, budget), (6 * 25 * 25, 4_000), "{r}");
+    assert_eq!(r["passes"].as_u64(), Some(0), "{r}");
+    let stopped = r["stopped"].as_str().unwrap_or_default();
+    assert!(stopped.contains("started finer"), "{stopped}");
+    assert_eq!(
+        default["options"]["started_finer_than_elements"].as_u64(),
+        Some(600),
+        "{}",
+        default["options"]
+    );
+    // The same grid asked for: the same elements and the same b.
+    let size = default["options"]["subdivision"]["max_element_size"]
+        .as_f64()
+        .expect("the element size");
+    let given = bake(
+        "given",
+        &["--max-element-size", &size.to_string(), "--refine", "off"],
+    );
+    assert_eq!(
+        given["refinement"]["elements_after"].as_u64(),
+        Some(elements)
+    );
+    assert!(given["options"]["started_finer_than_elements"].is_null());
+    assert_eq!(default["elements_included"], given["elements_included"]);
+    assert_eq!(default["elements"], given["elements"], "the same solution");
+    assert_eq!(default["energy"], given["energy"], "the same solution");
+    // An element size given keeps the preset's refinement from that grid.
+    let refined = bake("refined", &["--max-element-size", "0.1"]);
+    let r = &refined["refinement"];
+    assert!(r["passes"].as_u64().unwrap_or(0) > 0, "{r}");
 }

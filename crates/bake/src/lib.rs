@@ -328,6 +328,10 @@ fn run_refined(
     let lap = Instant::now();
     let occluders = Occluders::new(&scene.polygons)?.with_cutouts(cutouts(scene));
     let setup = lap.elapsed().as_secs_f64();
+    // Smooth light on a small scene starts at refinement's budget instead of refining.
+    let summary = scene_summary(scene, settings, None, &occluders)?;
+    let finer = plan::finer_start(settings, &summary, &scene.polygons)?;
+    let settings = finer.as_ref().unwrap_or(settings);
     let first = run_mesh(scene, settings, progress, None, &occluders)?;
     let mut bake = refine::refine(scene, settings, progress, first, &occluders)?;
     insert_stage(&mut bake, "visibility_setup", setup, Some("mesh"));
@@ -538,7 +542,7 @@ fn scene_summary(
     // transport is, so that every solve of a refining bake plans alike.
     let occluded = grid_elements <= DENSE_AUTO_MAX as u64
         && settings.transport == TransportKind::Auto
-        && scene_occluded(occluders);
+        && occluders.any_can_occlude();
     Ok(SceneSummary {
         elements: refined.unwrap_or(grid_elements),
         grid_elements,
@@ -546,17 +550,6 @@ fn scene_summary(
         rho_bound: scene_rho_bound(scene, settings.max_reflectance),
         bands: scene_bands(scene),
         occluded,
-    })
-}
-
-/// Whether some polygon of the scene `occluders` was made from can come between two others
-/// (visibility's conservative test; cut-outs play no part in it: they only open what could
-/// be blocked).
-fn scene_occluded(occluders: &Occluders) -> bool {
-    let p = occluders.len();
-    (0..p).any(|i| {
-        let a = occluders.polygon(i);
-        (i + 1..p).any(|j| occluders.can_occlude(&a, &occluders.polygon(j)))
     })
 }
 

@@ -22,7 +22,9 @@
 //! which refines by default and as far as on the dense transport). This
 //! repeats until nothing is marked, the budget is reached (a warning names where, when the user
 //! asked for a target: [`crate::Settings::warn_refinement`]), or
-//! [`MAX_PASSES`] solves ran. Where the light is smooth nothing is marked. Finally each vertex
+//! [`MAX_PASSES`] solves ran. Where the light is smooth nothing is marked. A small scene
+//! whose light is smooth everywhere (nothing occludes, no punctual light) is not refined at
+//! all: it starts at the budget's uniform grid instead (`crate::plan::finer_start`). Finally each vertex
 //! gets one copy per side of every shadow edge ([`mesher::ElementMesh::split_at_discontinuities`]),
 //! so smoothing never blends lit and shadowed elements.
 
@@ -184,13 +186,20 @@ fn where_above(scene: &Scene, bake: &Bake, elements: &[usize]) -> String {
 
 /// Why `bake` is not refined at all, if it is not: refinement off, links saved or loaded, or
 /// a hierarchical bake that did not ask for it.
-fn not_refined(settings: &Settings, bake: &Bake) -> Option<&'static str> {
+fn not_refined(settings: &Settings, bake: &Bake) -> Option<String> {
+    if let Some((grid, budget)) = settings.started_finer {
+        return Some(format!(
+            "started finer instead: nothing occludes and no light casts a shadow, so the light \
+             is smooth, and a uniform grid at the element budget ({budget}) is more accurate \
+             for its time than refining the preset's grid of {grid} elements"
+        ));
+    }
     if !settings.refine {
-        return Some("--refine off");
+        return Some("--refine off".into());
     }
     if settings.save_links || settings.load_links.is_some() {
         // Saved links are keyed by the grids (and loaded ones were made over them).
-        return Some("not refined: --save-links and --load-links keep the grids");
+        return Some("not refined: --save-links and --load-links keep the grids".into());
     }
     if !bake.plan.refines_by_default()
         && !settings.refine_requested
@@ -200,7 +209,8 @@ fn not_refined(settings: &Settings, bake: &Bake) -> Option<&'static str> {
         // walkthrough's default bake stays one solve, and `--refine on` asks for more.
         return Some(
             "not refined by default on the hierarchical transport (each refinement solve links \
-             the scene again): --refine on or --max-elements asks for it",
+             the scene again): --refine on or --max-elements asks for it"
+                .into(),
         );
     }
     None
@@ -343,7 +353,10 @@ pub fn refine(
     bake.refinement.elements_before = before;
     bake.refinement.elements_after = before;
     if let Some(why) = not_refined(settings, &bake) {
-        bake.refinement.stopped = why.into();
+        bake.refinement.stopped = why;
+        if let Some((_, budget)) = settings.started_finer {
+            bake.refinement.budget = budget;
+        }
         return Ok(bake);
     }
     let hierarchical = bake.plan.transport().kind == TransportKind::Hierarchical;

@@ -178,6 +178,12 @@ pub fn hierarchical_solve_tolerance(max_error: f64) -> f64 {
 pub struct Settings {
     pub(crate) quality: Quality,
     pub(crate) subdivision: Subdivision,
+    /// Whether `--subdiv` or `--max-element-size` was given (else the preset's element size,
+    /// which a scene of smooth light may start finer than: [`crate::plan::finer_start`]).
+    pub(crate) subdivision_requested: bool,
+    /// The grid's elements this bake started finer than, and the budget it started at, when
+    /// it did ([`crate::plan::finer_start`]); `None` otherwise.
+    pub(crate) started_finer: Option<(u64, u64)>,
     pub(crate) contour: ContourOptions,
     /// The estimator as given or preset; under the dense transport, when
     /// [`Settings::derive_tolerance`], `auto`'s tolerance comes from `max_error` instead
@@ -280,6 +286,8 @@ impl Settings {
         Ok(Settings {
             quality: request.quality,
             subdivision,
+            subdivision_requested: request.subdivision.is_some(),
+            started_finer: None,
             contour: request.contour,
             estimator,
             max_error,
@@ -399,6 +407,7 @@ impl Settings {
             "light_samples": self.light_samples,
             "load_links": self.load_links.as_ref().map(|p| p.to_string_lossy().into_owned()),
             "refine": self.refine,
+            "started_finer_than_elements": self.started_finer.map(|(grid, _)| grid),
             "max_elements": self.max_elements,
             "max_reflectance": self.max_reflectance,
         })

@@ -170,6 +170,8 @@ pub struct Occluders {
     scale: f64,
     /// Per polygon, when it has cut-outs: whether it is there (blocks light) at a point.
     cutouts: Vec<Option<Cutout>>,
+    /// [`Occluders::any_can_occlude`], once asked.
+    any_occludable: std::sync::OnceLock<bool>,
 }
 
 /// Where a segment first meets a polygon ([`Occluders::first_hit`]).
@@ -221,6 +223,7 @@ impl Occluders {
             tree,
             scale,
             cutouts: Vec::new(),
+            any_occludable: std::sync::OnceLock::new(),
         })
     }
 
@@ -294,6 +297,19 @@ impl Occluders {
             }
             let piece = &self.pieces[k];
             may_block(piece, a, b, tol) && may_block(piece, &pa, &pb, tol)
+        })
+    }
+
+    /// Whether some polygon can come between two others ([`Occluders::can_occlude`] of some
+    /// polygon pair; cut-outs play no part: they only open what could be blocked). Stops at
+    /// the first such pair; computed once, then remembered (a refining bake asks per solve).
+    pub fn any_can_occlude(&self) -> bool {
+        *self.any_occludable.get_or_init(|| {
+            let p = self.len();
+            (0..p).any(|i| {
+                let a = self.polygon(i);
+                (i + 1..p).any(|j| self.can_occlude(&a, &self.polygon(j)))
+            })
         })
     }
 
