@@ -238,8 +238,11 @@ fn displayed_rms<'a>(
 /// The uniform front's error at `time`: log–log interpolation between the uniform points
 /// around it (sorted by time, each the best error so far); before the fastest point, the first
 /// segment's log–log line continued (a preset faster than every uniform bake is held to the
-/// front's own trend, not to a slower bake's error); flat after the slowest (a preset slower
-/// than every uniform bake is held to the best of them).
+/// front's own trend, not to a slower bake's error), its slope no steeper than −1 (error
+/// inversely proportional to time, already steeper than a uniform mesh can go: error ∝ h,
+/// time ∝ h⁻² or more; two fast points a timing jitter apart would otherwise extrapolate any
+/// error); flat after the slowest (a preset slower than every uniform bake is held to the best
+/// of them).
 pub fn front_error(points: &[(f64, f64)], time: f64) -> Option<f64> {
     let mut front: Vec<(f64, f64)> = points.to_vec();
     front.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -255,7 +258,8 @@ pub fn front_error(points: &[(f64, f64)], time: f64) -> Option<f64> {
     if time <= first.0 {
         return Some(match kept.get(1) {
             Some(&second) => {
-                let slope = (second.1.ln() - first.1.ln()) / (second.0.ln() - first.0.ln());
+                let slope =
+                    ((second.1.ln() - first.1.ln()) / (second.0.ln() - first.0.ln())).max(-1.0);
                 (first.1.ln() + slope * (time.ln() - first.0.ln())).exp()
             }
             None => first.1,
@@ -309,7 +313,8 @@ pub fn markdown(rows: &[PresetRow]) -> String {
          `small_room.obj` against converged bakes (diagonal/40 and /64, hierarchical, link \
          tolerance 1e-3, 121 rays, not refined); the sun floor against its closed form. \
          *Front*: the uniform points' error at the preset's time, interpolated log–log (along \
-         the first segment before the fastest point, flat after the slowest). Regenerate with \
+         the first segment, no steeper than error ∝ 1/time, before the fastest point, flat \
+         after the slowest). Regenerate with \
          `cargo run --release -p bake-accuracy-report -- --presets` (this section only).\n"
     );
     let mut scenes: Vec<&'static str> = rows.iter().map(|r| r.scene).collect();
@@ -388,5 +393,9 @@ mod tests {
             "{mid}"
         );
         assert_eq!(front_error(&[], 1.0), None);
+        // Two fast points a jitter apart: the slope is held at −1.
+        let jitter = [(0.128, 0.300), (0.135, 0.217)];
+        let held = front_error(&jitter, 0.064).unwrap();
+        assert!((held / 0.600 - 1.0).abs() < 1e-12, "{held}");
     }
 }
