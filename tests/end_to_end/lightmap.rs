@@ -560,35 +560,50 @@ fn check_atlas(lightmap: &Lightmap, what: &str) -> f64 {
             assert!(apart, "{what}: regions {r:?} and {s:?} overlap");
         }
     }
-    let mut chart_texels = 0u64;
+    // The polygons of one region: a grouped chart's, or two triangles sharing a rectangle, or
+    // one polygon alone; texels of any of them are the region's own.
+    let mut regions: Vec<(lightmap::Rect, Vec<usize>)> = Vec::new();
     for (p, chart) in lightmap.charts.iter().enumerate() {
-        let r = chart.region;
+        match regions.iter_mut().find(|(r, _)| *r == chart.region) {
+            Some((_, members)) => members.push(p),
+            None => regions.push((chart.region, vec![p])),
+        }
+    }
+    let mut chart_texels = 0u64;
+    for (r, members) in &regions {
+        let own = |c: u32| members.contains(&(c as usize));
         let mut footprint = Vec::new();
         for y in r.y as usize..(r.y + r.height) as usize {
             for x in r.x as usize..(r.x + r.width) as usize {
                 let c = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
                 let coverage = lightmap.coverage[at(x, y)];
                 // Read by bilinear filtering at full resolution for some point of the chart.
-                if square_meets(c, 1.0, &uvs[p]) {
-                    assert_eq!(coverage, Texel::Chart(p as u32), "{what}: texel ({x}, {y})");
+                if members.iter().any(|&p| square_meets(c, 1.0, &uvs[p])) {
+                    assert!(
+                        matches!(coverage, Texel::Chart(q) if own(q)),
+                        "{what}: texel ({x}, {y}) is {coverage:?}, read by {members:?}"
+                    );
                     let v = lightmap.texels[at(x, y)];
                     assert!(v.iter().all(|c| c.is_finite() && *c > 0.0), "{what}: {v:?}");
                     footprint.push((x, y));
                     chart_texels += 1;
                 }
-                // Read at mip 1 (level-0 centres within 2.5 texels): this chart's own.
-                if square_meets(c, 2.5, &uvs[p]) {
+                // Read at mip 1 (level-0 centres within 2.5 texels): this region's own.
+                if members.iter().any(|&p| square_meets(c, 2.5, &uvs[p])) {
                     assert!(
-                        matches!(coverage, Texel::Chart(q) | Texel::Gutter(q) if q as usize == p),
-                        "{what}: texel ({x}, {y}) is {coverage:?}, read by polygon {p} at mip 1"
+                        matches!(coverage, Texel::Chart(q) | Texel::Gutter(q) if own(q)),
+                        "{what}: texel ({x}, {y}) is {coverage:?}, read by {members:?} at mip 1"
                     );
                 }
             }
         }
-        // Gutter texels equal their nearest footprint texel (any of the nearest on a tie).
+        // Gutter texels equal their nearest footprint texel (any of the nearest on a tie); a
+        // region of several polygons (a grouped chart's) may grow its gutter ring by ring
+        // from its neighbours' sources, so one within a texel and a half of the nearest.
+        let grouped = members.len() > 1;
         for y in r.y as usize..(r.y + r.height) as usize {
             for x in r.x as usize..(r.x + r.width) as usize {
-                if lightmap.coverage[at(x, y)] != Texel::Gutter(p as u32) {
+                if !matches!(lightmap.coverage[at(x, y)], Texel::Gutter(q) if own(q)) {
                     continue;
                 }
                 let d2 = |&(fx, fy): &(usize, usize)| {
@@ -596,36 +611,50 @@ fn check_atlas(lightmap: &Lightmap, what: &str) -> f64 {
                     dx * dx + dy * dy
                 };
                 let nearest = footprint.iter().map(d2).min().expect("a footprint");
+                let reach = if grouped {
+                    ((nearest as f64).sqrt() + 1.5).powi(2)
+                } else {
+                    nearest as f64
+                };
                 assert!(
                     footprint
                         .iter()
-                        .filter(|f| d2(f) == nearest)
+                        .filter(|f| d2(f) as f64 <= reach)
                         .any(|&(fx, fy)| lightmap.texels[at(fx, fy)] == lightmap.texels[at(x, y)]),
-                    "{what}: gutter texel ({x}, {y})"
+                    "{what}: gutter texel ({x}, {y}) = {:?} of {members:?} (nearest footprint at \
+                     distance² {nearest}: {:?})",
+                    lightmap.texels[at(x, y)],
+                    footprint
+                        .iter()
+                        .filter(|f| d2(f) as f64 <= reach + 4.0)
+                        .map(|&(fx, fy)| ((fx, fy), lightmap.texels[at(fx, fy)]))
+                        .collect::<Vec<_>>()
                 );
             }
         }
         // Mip 1 (2×2 box) sampled bilinearly at points of the chart reads only own texels.
-        let (lo, hi) = uvs[p].iter().fold(
-            (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
-            |(l, h), q| (l.min(*q), h.max(*q)),
-        );
-        for i in 0..=20 {
-            for j in 0..=20 {
-                let q = lo + (hi - lo) * DVec2::new(i as f64 / 20.0, j as f64 / 20.0);
-                if !square_meets(q, 0.0, &uvs[p]) {
-                    continue;
-                }
-                let m = q / 2.0 - DVec2::splat(0.5);
-                let (mx, my) = (m.x.floor() as i64, m.y.floor() as i64);
-                for (bx, by) in [(mx, my), (mx + 1, my), (mx, my + 1), (mx + 1, my + 1)] {
-                    for (x, y) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                        let (tx, ty) = ((2 * bx + x) as usize, (2 * by + y) as usize);
-                        let coverage = lightmap.coverage[at(tx, ty)];
-                        assert!(
-                            matches!(coverage, Texel::Chart(c) | Texel::Gutter(c) if c as usize == p),
-                            "{what}: mip 1 at {q} reads ({tx}, {ty}) = {coverage:?}"
-                        );
+        for &p in members {
+            let (lo, hi) = uvs[p].iter().fold(
+                (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+                |(l, h), q| (l.min(*q), h.max(*q)),
+            );
+            for i in 0..=20 {
+                for j in 0..=20 {
+                    let q = lo + (hi - lo) * DVec2::new(i as f64 / 20.0, j as f64 / 20.0);
+                    if !square_meets(q, 0.0, &uvs[p]) {
+                        continue;
+                    }
+                    let m = q / 2.0 - DVec2::splat(0.5);
+                    let (mx, my) = (m.x.floor() as i64, m.y.floor() as i64);
+                    for (bx, by) in [(mx, my), (mx + 1, my), (mx, my + 1), (mx + 1, my + 1)] {
+                        for (x, y) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                            let (tx, ty) = ((2 * bx + x) as usize, (2 * by + y) as usize);
+                            let coverage = lightmap.coverage[at(tx, ty)];
+                            assert!(
+                                matches!(coverage, Texel::Chart(c) | Texel::Gutter(c) if own(c)),
+                                "{what}: mip 1 at {q} reads ({tx}, {ty}) = {coverage:?}"
+                            );
+                        }
                     }
                 }
             }

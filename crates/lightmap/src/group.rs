@@ -1,4 +1,4 @@
-//! Grouped charts, for meshes of many small polygons (above [`GROUPED_ABOVE`] polygons),
+//! Grouped charts, for meshes of many small polygons (any scene above [`GROUPED_ABOVE`] polygons),
 //! where one chart per polygon would make every triangle pay its own gutter.
 //!
 //! A chart grows from its first polygon (in polygon order) across shared edges (both ends
@@ -22,8 +22,11 @@ use std::collections::HashMap;
 /// Scenes with more polygons than this get grouped charts when any polygons group (or there
 /// are more polygons than one shelf-packed atlas takes; polygons alone in their group keep
 /// the per-polygon layout); others keep one chart per polygon (each with its exact aspect,
-/// stretched to its shelf, and no interior seams).
-pub const GROUPED_ABOVE: usize = 4096;
+/// stretched to its shelf, and no interior seams). 0: every scene (issue 32). It was 4 096,
+/// which left a 1 152-triangle cylinder in 1 152 charts at 36.5 % occupancy (grouped: 13
+/// charts, 78.1 %; `crates/lightmap/tests/seams.rs`); a scene of separate quads (the cube, the
+/// Cornell box) groups nothing and keeps the per-polygon layout.
+pub const GROUPED_ABOVE: usize = 0;
 /// Every polygon of a chart has its normal within this angle of the chart's first polygon
 /// (so within twice it of the chart's mean normal).
 pub const CHART_CONE_DEGREES: f64 = 22.5;
