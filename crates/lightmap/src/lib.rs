@@ -46,6 +46,7 @@ mod field;
 mod group;
 mod pack;
 mod raster;
+mod seams;
 
 pub use authored::{AuthoredUv, UvDecision, UvMode, MIN_PADDING, OWN_ATLAS, OWN_REGION};
 pub use chart::{PADDING, PAIR_GAP};
@@ -61,6 +62,7 @@ use glam::{DVec2, DVec3};
 use mesher::ElementMesh;
 use rayon::prelude::*;
 use scene::Polygon;
+pub use seams::{Seams, FOOTPRINT, POINTS_PER_EDGE};
 
 /// Default `--lightmap-max`: the largest atlas side, in texels.
 pub const DEFAULT_MAX_SIZE: u32 = 4096;

@@ -11,22 +11,13 @@ use bake_lightmap as lightmap;
 use common::polygon;
 use glam::{DVec2, DVec3};
 use importer::Polygon;
-use lightmap::{Options, Shading};
-
-fn options(polygons: &[Polygon]) -> Options {
-    Options {
-        texel_size: lightmap::default_texel_size(polygons),
-        max_size: lightmap::DEFAULT_MAX_SIZE,
-        shading: Shading::Smooth,
-        max_atlases: lightmap::DEFAULT_MAX_ATLASES,
-    }
-}
 
 /// Builds with one element per polygon and constant light: (charts, atlases, occupancy).
 fn measure(polygons: &[Polygon]) -> (usize, usize, f64) {
     let mesh = mesher::mesh(polygons, mesher::Subdivision::Count(1)).expect("mesh");
     let values = vec![[1.0; 3]; mesh.elements.len()];
-    let built = lightmap::build(polygons, &mesh, &values, &options(polygons)).expect("build");
+    let built = lightmap::build(polygons, &mesh, &values, &common::default_options(polygons))
+        .expect("build");
     (
         built.stats.charts,
         built.stats.atlases,
@@ -89,7 +80,13 @@ fn a_ramp_that_winds_over_itself_gets_few_charts_that_do_not_overlap() {
     assert!(polygons.len() > lightmap::GROUPED_ABOVE);
     let mesh = mesher::mesh(&polygons, mesher::Subdivision::Count(1)).expect("mesh");
     let values = vec![[1.0; 3]; mesh.elements.len()];
-    let built = lightmap::build(&polygons, &mesh, &values, &options(&polygons)).expect("build");
+    let built = lightmap::build(
+        &polygons,
+        &mesh,
+        &values,
+        &common::default_options(&polygons),
+    )
+    .expect("build");
     let charts = built.stats.charts;
     println!(
         "helicoid: {} polygons, {charts} charts, {} atlases, occupancy {:.1}%",

@@ -27,7 +27,7 @@ use crate::refinement;
 use anyhow::{Context, Result};
 use bake_core::presets::Quality;
 use bake_core::TransportKind;
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 use importer::Polygon;
 use mesher::Subdivision;
 use std::collections::HashMap;
@@ -238,22 +238,8 @@ fn displayed<'a>(field: &'a Field<'a>) -> impl Fn(usize, DVec3) -> Option<[f64; 
     move |p, x| field.smooth(p, x).or_else(|| field.flat(p, x))
 }
 
-/// Barycentric weights of `p` in the triangle (a, b, d), in the triangle's plane.
-fn barycentric(a: DVec3, b: DVec3, d: DVec3, p: DVec3) -> [f64; 3] {
-    let (e1, e2, q) = (b - a, d - a, p - a);
-    let n = e1.cross(e2);
-    let nn = n.length_squared();
-    if nn <= 0.0 {
-        return [1.0, 0.0, 0.0];
-    }
-    let l1 = q.cross(e2).dot(n) / nn;
-    let l2 = e1.cross(q).dot(n) / nn;
-    [1.0 - l1 - l2, l1, l2]
-}
-
-/// What a viewer shows from `map` at point `x` of polygon `p`: `TEXCOORD_1` interpolated over
-/// the glTF fan triangle (v0 vk vk+1) that holds x, the atlas sampled bilinearly there (H),
-/// as ρH + e with the polygon's ρ and e.
+/// What a viewer shows from `map` at point `x` of polygon `p` (`Lightmap::viewed_at`: the atlas
+/// sampled bilinearly at the point's `TEXCOORD_1`), as ρH + e with the polygon's ρ and e.
 fn lightmap_value(
     map: &lightmap::Lightmap,
     polygons: &[Polygon],
@@ -261,25 +247,7 @@ fn lightmap_value(
     p: usize,
     x: DVec3,
 ) -> Option<[f64; 3]> {
-    let c = &polygons.get(p)?.vertices;
-    let chart = map.charts.get(p)?;
-    let mut best: Option<(f64, DVec2)> = None;
-    for k in 1..c.len().saturating_sub(1) {
-        let l = barycentric(c[0], c[k], c[k + 1], x);
-        let outside = -l.iter().copied().fold(f64::INFINITY, f64::min);
-        if best.is_some_and(|b| b.0 <= outside) {
-            continue;
-        }
-        let uv = [0, k, k + 1]
-            .iter()
-            .zip(l)
-            .map(|(&v, w)| DVec2::from_array(map.texcoord(p, v).map(f64::from)) * w)
-            .sum();
-        best = Some((outside, uv));
-    }
-    let (_, uv) = best?;
-    let atlas = map.atlas(chart.atlas as usize);
-    let h = lightmap::sample_bilinear(atlas.texels, atlas.width, atlas.height, uv.to_array());
+    let h = map.viewed_at(polygons, p, x)?;
     let (rho, e) = rho_e.get(p)?;
     Some(std::array::from_fn(|k| rho[k] * h[k] + e[k]))
 }
@@ -955,6 +923,19 @@ mod tests {
             );
             assert!(l.iter().all(|&w| w > 0.0), "{p} {l:?}");
         }
+    }
+
+    /// Barycentric weights of `p` in the triangle (a, b, d), in the triangle's plane.
+    fn barycentric(a: DVec3, b: DVec3, d: DVec3, p: DVec3) -> [f64; 3] {
+        let (e1, e2, q) = (b - a, d - a, p - a);
+        let n = e1.cross(e2);
+        let nn = n.length_squared();
+        if nn <= 0.0 {
+            return [1.0, 0.0, 0.0];
+        }
+        let l1 = q.cross(e2).dot(n) / nn;
+        let l2 = e1.cross(q).dot(n) / nn;
+        [1.0 - l1 - l2, l1, l2]
     }
 
     fn test_polygon() -> Polygon {

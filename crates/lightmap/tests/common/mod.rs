@@ -2,8 +2,20 @@
 
 #![allow(dead_code)] // each test binary uses its own subset
 
+use bake_lightmap as lightmap;
 use glam::DVec3;
 use importer::{Origin, Polygon, Side};
+
+/// The CLI's default lightmap options for `polygons`: the default texel size, atlas limits,
+/// smooth shading.
+pub fn default_options(polygons: &[Polygon]) -> lightmap::Options {
+    lightmap::Options {
+        texel_size: lightmap::default_texel_size(polygons),
+        max_size: lightmap::DEFAULT_MAX_SIZE,
+        shading: lightmap::Shading::Smooth,
+        max_atlases: lightmap::DEFAULT_MAX_ATLASES,
+    }
+}
 
 /// A polygon of `material` in node, mesh and primitive 0, facing by its winding.
 pub fn polygon(vertices: Vec<DVec3>, material: usize) -> Polygon {
