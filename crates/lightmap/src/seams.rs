@@ -11,7 +11,9 @@
 //! (a wrong gutter, a chart placed off its polygon, a weld that does not match) jumps by at
 //! most the range of that field over the surface within [`FOOTPRINT`] texels of x: the
 //! polygons reached from the edge's two through shared vertices while they come that close,
-//! each sampled on a 7 × 7 grid of its plane around x and at its corners within reach. At a
+//! each sampled on a 7 × 7 grid of its plane around x (every grid point taken to its nearest
+//! point of the polygon, so a sliver thinner than the grid counts) and at its corners within
+//! reach; a polygon wholly within reach at its corners and centre. At a
 //! crease (different planes or materials, not welded) the sides' fields differ, and that
 //! difference is part of the range.
 
@@ -44,7 +46,7 @@ pub struct Seams {
     pub shared_edges: usize,
     /// Shared edges whose sides lie apart in the atlas.
     pub seam_edges: usize,
-    /// Points measured (seam edges × [`POINTS_PER_EDGE`]).
+    /// Points measured (seam edges × points per edge).
     pub points: usize,
     /// The largest jump, relative to the larger of the two sides' values there.
     pub worst_jump: f64,
@@ -59,8 +61,14 @@ pub struct Seams {
 
 impl Lightmap {
     /// The seams of this lightmap of `polygons` (the ones it was built from), measured as the
-    /// module docs say.
+    /// module docs say at [`POINTS_PER_EDGE`] points of every seam edge.
     pub fn seams(&self, polygons: &[Polygon]) -> Seams {
+        self.seams_at(polygons, POINTS_PER_EDGE)
+    }
+
+    /// [`Lightmap::seams`] at `points` points of every seam edge (at least 1).
+    pub fn seams_at(&self, polygons: &[Polygon], points: usize) -> Seams {
+        let points = points.max(1);
         let (edges, around) = shared_edges(polygons);
         let around = &around;
         let seam: Vec<SharedEdge> = edges
@@ -79,8 +87,8 @@ impl Lightmap {
             .par_iter()
             .flat_map_iter(|&(p, a, b, q, _, _)| {
                 let (x0, x1) = (polygons[p].vertices[a], polygons[p].vertices[b]);
-                (0..POINTS_PER_EDGE).map(move |k| {
-                    let x = x0.lerp(x1, (k as f64 + 0.5) / POINTS_PER_EDGE as f64);
+                (0..points).map(move |k| {
+                    let x = x0.lerp(x1, (k as f64 + 0.5) / points as f64);
                     let (jump, ratio) = self.jump_at(polygons, around, (p, q), x, texel);
                     (jump, ratio, (p, q, x))
                 })
@@ -136,18 +144,33 @@ impl Lightmap {
             let poly = &polygons[s];
             let field = &self.fields[s];
             // The field at the points of s within r of x: a 7 × 7 grid of its plane around
-            // x's projection, and its corners.
+            // x's projection, each point taken into s (its nearest point of s: a sliver thinner
+            // than the grid's spacing is still sampled), and its corners.
             let centre = field.to_plane(x);
             let mut reached = false;
-            for i in -3..=3 {
-                for j in -3..=3 {
+            let near = field.to_world(nearest_in(&field.corners, centre));
+            if near.distance(x) > r {
+                continue;
+            }
+            // A polygon wholly within reach: its corners (taken below) and centre bound its
+            // field (linear between its vertex values); else the grid.
+            let grid = if poly.vertices.iter().all(|v| v.distance(x) <= r) {
+                0
+            } else {
+                3
+            };
+            if grid == 0 {
+                let c = poly.vertices.iter().copied().sum::<DVec3>() / poly.vertices.len() as f64;
+                take(self.irradiance_at(s, c));
+                reached = true;
+            }
+            for i in -grid..=grid {
+                for j in -grid..=grid {
                     let d = glam::DVec2::new(i as f64, j as f64) * (r / 3.0);
-                    if d.length() > r {
-                        continue;
-                    }
-                    let y = centre + d;
-                    if field.contains(y, 1e-9 * r) {
-                        take(self.irradiance_at(s, field.to_world(y)));
+                    let y = nearest_in(&field.corners, centre + d);
+                    let world = field.to_world(y);
+                    if world.distance(x) <= r {
+                        take(self.irradiance_at(s, world));
                         reached = true;
                     }
                 }
@@ -282,6 +305,32 @@ fn shared_edges(polygons: &[Polygon]) -> (Vec<SharedEdge>, Vec<Vec<u32>>) {
         })
         .collect();
     (out, around)
+}
+
+/// The point of the convex polygon `corners` (counter-clockwise, plane coordinates) nearest
+/// to `y`: `y` itself inside, else the nearest point of its boundary.
+fn nearest_in(corners: &[DVec2], y: DVec2) -> DVec2 {
+    let n = corners.len();
+    let inside = (0..n).all(|k| {
+        let (a, b) = (corners[k], corners[(k + 1) % n]);
+        (b - a).perp_dot(y - a) >= 0.0
+    });
+    if inside || n < 2 {
+        return y;
+    }
+    (0..n)
+        .map(|k| {
+            let (a, b) = (corners[k], corners[(k + 1) % n]);
+            let e = b - a;
+            let t = if e.length_squared() > 0.0 {
+                ((y - a).dot(e) / e.length_squared()).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            a + e * t
+        })
+        .min_by(|p, q| p.distance_squared(y).total_cmp(&q.distance_squared(y)))
+        .unwrap_or(y)
 }
 
 /// Barycentric coordinates of `x` projected onto the plane of triangle (a, b, c).
