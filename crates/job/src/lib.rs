@@ -24,8 +24,9 @@ use std::time::Instant;
 
 pub use bake_core::presets::Quality;
 pub use bake_core::{
-    EstimatorKind, Progress, Request, SolverKind, TransportKind, DEFAULT_MAX_REFLECTANCE,
-    MAX_BOUNCES,
+    EstimatorKind, Progress, Request, Sky, SkyModel, SolverKind, TransportKind,
+    DEFAULT_GROUND_REFLECTANCE, DEFAULT_MAX_REFLECTANCE, DEFAULT_SKY_SAMPLES, MAX_BOUNCES,
+    MAX_SKY_SAMPLES,
 };
 pub use form_factor::ContourOptions;
 pub use lightmap::{UvMode, DEFAULT_MAX_ATLASES, DEFAULT_MAX_SIZE};
