@@ -281,3 +281,87 @@ fn sky_light_is_the_same_bytes_for_any_thread_count() {
         &["gltf", "bin"],
     );
 }
+
+/// A 2 × 2 m wall (ρ = 0.5) facing +x under `--sky overcast:Lz` with a ground of R = 0.3, and
+/// a 1 × 1 m black square 100 m away in front of it, there only so that the wall is sampled
+/// by rays (it hides about 1e-4 sr). The wall sees half the sky and half the ground:
+/// E = Lz/3 (π/2 + 4/3) + π L_g / 2 with L_g = R × 7 Lz / 9 (written here from the sky's
+/// definition: ∫ (1 + 2 sin γ) cos θ dω over the quarter sphere is π/2 + 2 × 2/3).
+#[test]
+fn rays_on_a_vertical_wall_see_half_the_overcast_sky_and_half_the_ground() {
+    let (lz, r) = (3.0, 0.3);
+    let wall = quad(
+        [0.0, 0.0, -1.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 2.0, 1.0],
+        [0.0, 2.0, -1.0],
+        [1.0, 0.0, 0.0],
+    );
+    let far = quad(
+        [100.0, 0.5, -0.5],
+        [100.0, 0.5, 0.5],
+        [100.0, 1.5, 0.5],
+        [100.0, 1.5, -0.5],
+        [-1.0, 0.0, 0.0],
+    );
+    let doc = lit_scene(&[(wall, [RHO; 3]), (far, [0.0; 3])], &[]);
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let report = bake_json(
+        dir.path(),
+        "wall",
+        &doc,
+        &[
+            "--sky",
+            "overcast:3",
+            "--ground-reflectance",
+            "0.3",
+            "--subdiv",
+            "2",
+            "--refine",
+            "off",
+            "--sky-samples",
+            "1024",
+        ],
+    );
+    let ground = r * 7.0 * PI * lz / 9.0 / PI;
+    let e = lz / 3.0 * (PI / 2.0 + 4.0 / 3.0) + PI * ground / 2.0;
+    let expected = RHO * e / PI;
+    let walls: Vec<_> = report
+        .elements
+        .iter()
+        .filter(|e| e.normal[0] > 0.999)
+        .collect();
+    assert_eq!(walls.len(), 4);
+    let mut worst = 0.0f64;
+    for w in walls {
+        let relative = (w.b[0] - expected) / expected;
+        worst = worst.max(relative.abs());
+        assert!(relative.abs() < 5e-3, "b = {} against {expected}", w.b[0]);
+    }
+    eprintln!("wall under the overcast sky: worst {worst:.2e} of the closed form");
+    let sky = report.sky.expect("the report's sky");
+    assert_eq!(sky.stats.rays_cast, 8 * 1024, "every element sampled");
+}
+
+#[test]
+fn a_sky_that_is_not_one_is_refused_with_a_readable_line() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let input = dir.path().join("open.gltf");
+    common::write_json(&input, &lit_scene(&[(floor(), [RHO; 3])], &[]));
+    let out = dir.path().join("out.gltf");
+    for (args, says) in [
+        (["--sky", "clear"], "uniform:L or overcast:Lz"),
+        (["--sky", "uniform:-2"], "finite number ≥ 0"),
+        (["--ground-reflectance", "1.5"], "reflectance in [0, 1]"),
+    ] {
+        let run = common::bake([
+            "--quiet",
+            input.to_str().expect("UTF-8 path"),
+            out.to_str().expect("UTF-8 path"),
+            args[0],
+            args[1],
+        ]);
+        assert_eq!(run.code, Some(2), "{args:?}: {run:#?}");
+        assert!(run.stderr.contains(says), "{args:?}: {}", run.stderr);
+    }
+}
