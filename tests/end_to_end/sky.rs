@@ -199,6 +199,13 @@ fn a_black_walled_courtyard_matches_the_view_factor_to_its_opening() {
         "a square number of rays per element"
     );
     assert_eq!(sky.stats.elements_sampled as usize, report.elements.len());
+    // All the sky light that enters the opening lands on the floor or the walls: π L × 100 m²
+    // of flux, 100 in the energy unit (flux / π). Measured: 100.0019.
+    assert!(
+        (sky.delivered[0] - 100.0).abs() < 1e-3 * 100.0,
+        "delivered {}",
+        sky.delivered[0]
+    );
     // What the sky delivered is what the energy balance counts.
     let energy = report.energy.expect("energy");
     assert!((energy.delivered[0] - sky.delivered[0]).abs() <= 1e-9 * sky.delivered[0]);
