@@ -439,11 +439,16 @@ pub(crate) fn run_mesh(
     warnings.extend(advice::emissive_is_base_colour(scene));
     stages.record("mesh");
 
-    let light = Light::of(scene, &mesh, occluders, &rho, &emission, settings, progress);
+    let light = Light::of(
+        scene,
+        &mesh,
+        occluders,
+        (&rho, &emission),
+        settings,
+        progress,
+        &mut stages,
+    );
     warnings.extend(advice::lights_reaching_little(scene, &light.lit.stats));
-    if !scene.lights.is_empty() || settings.sky.is_some() {
-        stages.record("direct_light");
-    }
     let dark = light.source.iter().all(|s| s.iter().all(|&v| v == 0.0));
     if dark && settings.save_links {
         warnings.push(
@@ -582,14 +587,17 @@ struct Light {
 }
 
 impl Light {
+    /// The lights' and the sky's first reflection on the elements of `mesh` (`rho`, `emission`:
+    /// per element ρ and e); records the stages `direct_light` (with lights) and `sky_light`
+    /// (with a sky).
     fn of(
         scene: &Scene,
         mesh: &ElementMesh,
         occluders: &Occluders,
-        rho: &[[f64; BANDS]],
-        emission: &[[f64; BANDS]],
+        (rho, emission): (&[[f64; BANDS]], &[[f64; BANDS]]),
         settings: &Settings,
         progress: &dyn Progress,
+        stages: &mut Stages,
     ) -> Light {
         progress.start("direct light", scene.lights.len() as u64);
         let lit = direct::illuminate(
@@ -601,10 +609,14 @@ impl Light {
             },
         );
         progress.finish();
+        if !scene.lights.is_empty() {
+            stages.record("direct_light");
+        }
         let sky_lit = settings.sky.as_ref().map(|sky| {
             progress.start("sky light", 0);
             let sky_lit = direct::sky::illuminate(sky, mesh, occluders, settings.sky_samples);
             progress.finish();
+            stages.record("sky_light");
             sky_lit
         });
         let over_pi = |e: f64| e / std::f64::consts::PI;
