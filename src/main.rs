@@ -221,11 +221,12 @@ pub struct Cli {
     /// Multiply radiosity by X before clamping to [0, 1] for COLOR_0 (the unclamped value is
     /// kept in the _RADIOSITY attribute and the report). `auto`: the exposure that maps the
     /// 99th percentile, by area, of the elements' brightest band to 0.8 (punctual lights give
-    /// b in the hundreds or thousands of nits); the summary line and the report say which
-    /// exposure was used.
+    /// b in the hundreds or thousands of nits); `ev100:N`: a camera's exposure value at ISO
+    /// 100, exposure = 1 / (1.2 × 2^N), so 1.2 × 2^N cd/m² maps to 1 (overcast daylight
+    /// N ≈ 12, an office N ≈ 7); the summary line and the report say which exposure was used.
     #[arg(
         long,
-        value_name = "X|auto",
+        value_name = "X|auto|ev100:N",
         default_value = "1",
         allow_negative_numbers = true,
         value_parser = Exposure::from_str,

@@ -199,6 +199,10 @@ fn a_black_walled_courtyard_matches_the_view_factor_to_its_opening() {
         "a square number of rays per element"
     );
     assert_eq!(sky.stats.elements_sampled as usize, report.elements.len());
+    assert!(
+        report.timings.contains_key("sky_light"),
+        "the sky's own stage"
+    );
     // All the sky light that enters the opening lands on the floor or the walls: π L × 100 m²
     // of flux, 100 in the energy unit (flux / π). Measured: 100.0019.
     assert!(
@@ -371,4 +375,28 @@ fn a_sky_that_is_not_one_is_refused_with_a_readable_line() {
         assert_eq!(run.code, Some(2), "{args:?}: {run:#?}");
         assert!(run.stderr.contains(says), "{args:?}: {}", run.stderr);
     }
+}
+
+/// `--exposure ev100:N` is 1 / (1.2 × 2^N): with N = 3 an open floor of b = 9.6 cd/m²
+/// (ρ = 0.5 under `uniform:19.2`) is exposed to exactly 1.
+#[test]
+fn ev100_exposure_maps_1_2_times_2_to_the_n_to_one() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let doc = lit_scene(&[(floor(), [RHO; 3])], &[]);
+    let report = bake_json(
+        dir.path(),
+        "ev100",
+        &doc,
+        &["--sky", "uniform:19.2", "--exposure", "ev100:3"],
+    );
+    let exposure = report.options["exposure"]
+        .as_f64()
+        .expect("the exposure used");
+    assert_eq!(exposure, 1.0 / 9.6);
+    for e in &report.elements {
+        assert!((e.b[0] * exposure - 1.0).abs() < 1e-12);
+    }
+    let run = common::bake(["--exposure", "ev100:many", "a.gltf", "b.gltf"]);
+    assert_eq!(run.code, Some(2));
+    assert!(run.stderr.contains("ev100:N"), "{}", run.stderr);
 }

@@ -46,6 +46,7 @@ pub(crate) fn line(
         Exposure::Auto => hardness += &format!(", exposure auto = {exposure:.4e}"),
         Exposure::Value(x) if x != 1.0 => hardness += &format!(", exposure {x}"),
         Exposure::Value(_) => {}
+        Exposure::Ev100(n) => hardness += &format!(", exposure ev100:{n} = {exposure:.4e}"),
     }
     if let Some(built) = lightmap {
         hardness += &lightmap_part(built);

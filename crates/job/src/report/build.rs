@@ -143,6 +143,7 @@ impl Baked<'_> {
             "exposure_rule": match job.exposure {
                 Exposure::Auto => "auto: the 99th percentile (by area) of the elements' brightest band maps to 0.8",
                 Exposure::Value(_) => "given",
+                Exposure::Ev100(_) => "ev100:N: 1 / (1.2 × 2^N)",
             },
             "keep_lights": job.keep_lights,
             "output": job.output.display().to_string(),
