@@ -409,27 +409,11 @@ fn threejs_shows_the_baked_texture_as_the_report_says() {
 fn baked_textures_are_the_same_bytes_for_any_thread_count() {
     let dir = tempfile::tempdir().expect("a temporary directory");
     let input = textured_floor(dir.path(), false);
-    let outputs: Vec<Vec<Vec<u8>>> = ["1", "2", "3"]
-        .iter()
-        .map(|threads| {
-            let folder = dir.path().join(format!("threads-{threads}"));
-            std::fs::create_dir(&folder).expect("a folder");
-            let out = folder.join("out.gltf");
-            bake([
-                "--quiet",
-                "--target",
-                "baked-texture",
-                "--threads",
-                threads,
-                input.to_str().expect("UTF-8 path"),
-                out.to_str().expect("UTF-8 path"),
-            ])
-            .success();
-            ["gltf", "bin", "baked.png"]
-                .iter()
-                .map(|ext| std::fs::read(out.with_extension(ext)).expect("an output"))
-                .collect()
-        })
-        .collect();
-    assert!(outputs.iter().all(|o| o == &outputs[0]));
+    common::assert_same_bytes_for_thread_counts(
+        dir.path(),
+        &input,
+        &["1", "2", "3"],
+        &["--target", "baked-texture"],
+        &["gltf", "bin", "baked.png"],
+    );
 }

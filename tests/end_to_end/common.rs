@@ -187,6 +187,38 @@ fn push(array: &mut Value, value: Value) -> usize {
     array.len() - 1
 }
 
+/// Bakes `input` once per thread count (`--quiet --threads N`, then `args`) into
+/// `dir/threads-N/out.gltf` (the same file name each time: a glTF names its buffer file) and
+/// asserts that the outputs with the extensions `exts` are the same bytes every time.
+pub fn assert_same_bytes_for_thread_counts(
+    dir: &Path,
+    input: &Path,
+    threads: &[&str],
+    args: &[&str],
+    exts: &[&str],
+) {
+    let outputs: Vec<Vec<Vec<u8>>> = threads
+        .iter()
+        .map(|threads| {
+            let folder = dir.join(format!("threads-{threads}"));
+            std::fs::create_dir(&folder).expect("a folder");
+            let out = folder.join("out.gltf");
+            let mut all: Vec<&OsStr> = vec!["--quiet".as_ref(), "--threads".as_ref()];
+            all.push(OsStr::new(threads));
+            all.extend(args.iter().map(OsStr::new));
+            all.extend([input.as_os_str(), out.as_os_str()]);
+            bake(all).success();
+            exts.iter()
+                .map(|ext| std::fs::read(out.with_extension(ext)).expect("an output"))
+                .collect()
+        })
+        .collect();
+    assert!(
+        outputs.iter().all(|o| o == &outputs[0]),
+        "the outputs differ between thread counts {threads:?}"
+    );
+}
+
 /// Writes `doc` as `dir/NAME.gltf`, bakes it (`--target vertex`, a report, `--quiet`, then
 /// `args`), asserts exit 0 and returns the report.
 pub fn bake_json(dir: &Path, name: &str, doc: &Value, args: &[&str]) -> bake_job::report::Report {

@@ -28,6 +28,7 @@ mod quality;
 mod real_assets;
 mod refine;
 mod reliability3;
+mod sky;
 mod solver_stress;
 mod textures;
 mod validator_all;

@@ -100,7 +100,8 @@ pub fn lights_reaching_little(scene: &Scene, stats: &[direct::LightStats]) -> Ve
 /// The warning for a scene with nothing that gives light.
 pub fn no_light() -> String {
     "the scene has no emitters and no lights: every radiosity is 0; add a light \
-     (KHR_lights_punctual point, spot or sun) or an emissive material (emissiveFactor, MTL Ke)"
+     (KHR_lights_punctual point, spot or sun), an emissive material (emissiveFactor, MTL Ke) \
+     or a sky (--sky uniform:L or overcast:Lz)"
         .to_string()
 }
 

@@ -30,6 +30,9 @@ pub use settings::{
 };
 
 pub use accuracy::Accuracy;
+pub use direct::sky::{
+    Sky, SkyModel, SkyStats, DEFAULT_GROUND_REFLECTANCE, DEFAULT_SKY_SAMPLES, MAX_SKY_SAMPLES,
+};
 pub use direct::LightStats;
 use form_factor::Estimator;
 use mesher::ElementMesh;
@@ -210,6 +213,11 @@ pub struct Bake {
     pub direct: Vec<[f64; BANDS]>,
     /// Per light of the scene: what its direct-light pass did.
     pub light_stats: Vec<direct::LightStats>,
+    /// Per element: the sky's first reflection `ρ E_sky / π` (0 without `--sky`), the part of
+    /// `b` that comes straight from the sky and the ground below it.
+    pub sky: Vec<[f64; BANDS]>,
+    /// What the sky pass did (`None` without `--sky`).
+    pub sky_stats: Option<SkyStats>,
     /// Per element: some light's shadow edge crosses it ([`direct::DirectLight::partly_lit`]).
     pub partly_lit: Vec<bool>,
     /// Per element: which side of every shadow edge it is on
@@ -422,17 +430,25 @@ pub(crate) fn run_mesh(
         settings.max_reflectance,
     ));
     let rho_max = rho.iter().flatten().copied().fold(0.0f64, f64::max);
-    if scene.lights.is_empty() && emission.iter().all(|x| x.iter().all(|&v| v == 0.0)) {
+    if scene.lights.is_empty()
+        && settings.sky.is_none()
+        && emission.iter().all(|x| x.iter().all(|&v| v == 0.0))
+    {
         warnings.push(advice::no_light());
     }
     warnings.extend(advice::emissive_is_base_colour(scene));
     stages.record("mesh");
 
-    let light = Light::of(scene, &mesh, occluders, &rho, &emission, settings, progress);
+    let light = Light::of(
+        scene,
+        &mesh,
+        occluders,
+        (&rho, &emission),
+        settings,
+        progress,
+        &mut stages,
+    );
     warnings.extend(advice::lights_reaching_little(scene, &light.lit.stats));
-    if !scene.lights.is_empty() {
-        stages.record("direct_light");
-    }
     let dark = light.source.iter().all(|s| s.iter().all(|&v| v == 0.0));
     if dark && settings.save_links {
         warnings.push(
@@ -486,6 +502,8 @@ pub(crate) fn run_mesh(
         emission,
         direct: light.direct,
         light_stats: light.lit.stats,
+        sky: light.sky,
+        sky_stats: light.sky_stats,
         partly_lit: light.lit.partly_lit,
         shadow_class: light.lit.shadow_class,
         refinement: refine::Refinement::default(),
@@ -553,27 +571,33 @@ fn scene_summary(
     })
 }
 
-/// Punctual lights: E per element, its irradiance E/π in b's unit (a diffuse surface under
-/// illuminance E has exitance ρE, luminance ρE/π), and the source term e + ρE/π.
+/// Punctual lights and the sky: E per element, its irradiance E/π in b's unit (a diffuse
+/// surface under illuminance E has exitance ρE, luminance ρE/π), and the source term e + ρE/π.
 struct Light {
     lit: direct::DirectLight,
-    /// H⁰ = E / π.
+    /// H⁰ = E / π (lights and sky).
     external: Vec<[f64; BANDS]>,
-    /// ρ H⁰.
+    /// ρ H⁰ of the lights.
     direct: Vec<[f64; BANDS]>,
+    /// ρ H⁰ of the sky.
+    sky: Vec<[f64; BANDS]>,
+    sky_stats: Option<SkyStats>,
     /// e + ρ H⁰.
     source: Vec<[f64; BANDS]>,
 }
 
 impl Light {
+    /// The lights' and the sky's first reflection on the elements of `mesh` (`rho`, `emission`:
+    /// per element ρ and e); records the stages `direct_light` (with lights) and `sky_light`
+    /// (with a sky).
     fn of(
         scene: &Scene,
         mesh: &ElementMesh,
         occluders: &Occluders,
-        rho: &[[f64; BANDS]],
-        emission: &[[f64; BANDS]],
+        (rho, emission): (&[[f64; BANDS]], &[[f64; BANDS]]),
         settings: &Settings,
         progress: &dyn Progress,
+        stages: &mut Stages,
     ) -> Light {
         progress.start("direct light", scene.lights.len() as u64);
         let lit = direct::illuminate(
@@ -585,25 +609,50 @@ impl Light {
             },
         );
         progress.finish();
-        let external: Vec<[f64; BANDS]> = lit
-            .illuminance
-            .iter()
-            .map(|e| e.map(|v| v / std::f64::consts::PI))
-            .collect();
-        let direct: Vec<[f64; BANDS]> = external
+        if !scene.lights.is_empty() {
+            stages.record("direct_light");
+        }
+        let sky_lit = settings.sky.as_ref().map(|sky| {
+            progress.start("sky light", 0);
+            let sky_lit = direct::sky::illuminate(sky, mesh, occluders, settings.sky_samples);
+            progress.finish();
+            stages.record("sky_light");
+            sky_lit
+        });
+        let over_pi = |e: f64| e / std::f64::consts::PI;
+        let reflected =
+            |h: &[f64; BANDS], r: &[f64; BANDS]| [r[0] * h[0], r[1] * h[1], r[2] * h[2]];
+        let lights_h: Vec<[f64; BANDS]> = lit.illuminance.iter().map(|e| e.map(over_pi)).collect();
+        let sky_h: Vec<[f64; BANDS]> = match &sky_lit {
+            Some(s) => s.illuminance.iter().map(|&e| [over_pi(e); BANDS]).collect(),
+            None => vec![[0.0; BANDS]; mesh.elements.len()],
+        };
+        let direct: Vec<[f64; BANDS]> = lights_h
             .iter()
             .zip(rho)
-            .map(|(h, r)| [r[0] * h[0], r[1] * h[1], r[2] * h[2]])
+            .map(|(h, r)| reflected(h, r))
+            .collect();
+        let sky: Vec<[f64; BANDS]> = sky_h
+            .iter()
+            .zip(rho)
+            .map(|(h, r)| reflected(h, r))
+            .collect();
+        let external: Vec<[f64; BANDS]> = lights_h
+            .iter()
+            .zip(&sky_h)
+            .map(|(a, b)| [a[0] + b[0], a[1] + b[1], a[2] + b[2]])
             .collect();
         let source: Vec<[f64; BANDS]> = emission
             .iter()
-            .zip(&direct)
-            .map(|(e, d)| [e[0] + d[0], e[1] + d[1], e[2] + d[2]])
+            .zip(direct.iter().zip(&sky))
+            .map(|(e, (d, s))| [e[0] + d[0] + s[0], e[1] + d[1] + s[1], e[2] + d[2] + s[2]])
             .collect();
         Light {
             lit,
             external,
             direct,
+            sky,
+            sky_stats: sky_lit.map(|s| s.stats),
             source,
         }
     }
@@ -1313,6 +1362,18 @@ mod tests {
                 ..base.clone()
             }),
             "the solver and reflectances do not shape links"
+        );
+        assert_eq!(
+            same,
+            key(Request {
+                sky: Some(Sky {
+                    model: SkyModel::Overcast { zenith: 2.0 },
+                    ground_reflectance: 0.3,
+                }),
+                sky_samples: Some(64),
+                ..base.clone()
+            }),
+            "links are geometry only: the sky does not shape them"
         );
         let mut contour = base.contour;
         contour.segments += 1;

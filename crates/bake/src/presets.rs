@@ -43,6 +43,7 @@ impl Quality {
                 visibility_samples: 49,
                 link_samples: 9,
                 light_samples: 4,
+                sky_samples: 256,
             },
             Quality::Normal => Preset {
                 max_error: 1e-2,
@@ -53,6 +54,7 @@ impl Quality {
                 visibility_samples: 121,
                 link_samples: 25,
                 light_samples: 16,
+                sky_samples: 1024,
             },
             Quality::High => Preset {
                 max_error: 3e-3,
@@ -63,6 +65,7 @@ impl Quality {
                 visibility_samples: 961,
                 link_samples: 49,
                 light_samples: 64,
+                sky_samples: 4096,
             },
         }
     }
@@ -99,6 +102,10 @@ pub struct Preset {
     pub link_samples: u32,
     /// Shadow rays per element a polygon may shadow from a point or spot light.
     pub light_samples: u32,
+    /// Rays per element a polygon may block from the sky (`--sky-samples`; measured on the
+    /// black-walled courtyard at 0.5 m elements: 256 / 1024 / 4096 rays give 2.6% / 1.1% /
+    /// 0.44% RMS against the closed form, see [`direct::sky::DEFAULT_SKY_SAMPLES`]).
+    pub sky_samples: u32,
 }
 
 impl Preset {
@@ -131,6 +138,7 @@ mod tests {
             assert!(a.visibility_samples < b.visibility_samples);
             assert!(a.link_samples < b.link_samples);
             assert!(a.light_samples < b.light_samples);
+            assert!(a.sky_samples < b.sky_samples);
         }
     }
 }

@@ -100,6 +100,12 @@ pub struct Request {
     pub link_tolerance: Option<f64>,
     /// Shadow rays per element a polygon may shadow from a point or spot light.
     pub light_samples: Option<u32>,
+    /// `--sky`, `--ground-reflectance`: a sky over the scene as a light source (none when
+    /// `None`).
+    pub sky: Option<direct::sky::Sky>,
+    /// `--sky-samples`: rays per element some polygon may block from the sky (the preset's
+    /// when `None`).
+    pub sky_samples: Option<u32>,
     /// Compute the irradiance `H = F b` (lightmaps need it).
     pub irradiance: bool,
     /// Keep the hierarchical transport in the [`crate::Bake`] for saving (`--save-links`).
@@ -145,6 +151,8 @@ impl Default for Request {
             transport: TransportKind::Auto,
             link_tolerance: None,
             light_samples: None,
+            sky: None,
+            sky_samples: None,
             irradiance: false,
             save_links: false,
             load_links: None,
@@ -215,6 +223,10 @@ pub struct Settings {
     pub(crate) link_samples: u32,
     /// Shadow rays per element a polygon may shadow from a point or spot light.
     pub(crate) light_samples: u32,
+    /// The sky lighting the scene, if any.
+    pub(crate) sky: Option<direct::sky::Sky>,
+    /// Rays per element some polygon may block from the sky.
+    pub(crate) sky_samples: u32,
     pub(crate) irradiance: bool,
     /// `--save-links` / `--load-links` (either makes the transport hierarchical).
     pub(crate) save_links: bool,
@@ -304,6 +316,8 @@ impl Settings {
             link_tolerance: request.link_tolerance,
             link_samples: request.visibility_samples.unwrap_or(preset.link_samples),
             light_samples: request.light_samples.unwrap_or(preset.light_samples),
+            sky: request.sky,
+            sky_samples: request.sky_samples.unwrap_or(preset.sky_samples),
             irradiance: request.irradiance,
             save_links: request.save_links,
             load_links: request.load_links.clone(),
@@ -319,6 +333,11 @@ impl Settings {
             refine_levels: request.refine_levels.unwrap_or(crate::refine::MAX_LEVELS),
             max_reflectance: request.max_reflectance.unwrap_or(DEFAULT_MAX_REFLECTANCE),
         })
+    }
+
+    /// The sky lighting the scene (`--sky`), if any.
+    pub fn sky(&self) -> Option<direct::sky::Sky> {
+        self.sky
     }
 
     /// The hierarchical transport's link tolerance: `--link-tolerance`, else derived from
@@ -405,6 +424,8 @@ impl Settings {
             "link_tolerance_from_max_error": hierarchical && self.link_tolerance.is_none(),
             "link_samples": hierarchical.then_some(self.link_samples),
             "light_samples": self.light_samples,
+            "sky": self.sky,
+            "sky_samples": self.sky.is_some().then_some(self.sky_samples),
             "load_links": self.load_links.as_ref().map(|p| p.to_string_lossy().into_owned()),
             "refine": self.refine,
             "started_finer_than_elements": self.started_finer.map(|(grid, _)| grid),
@@ -464,6 +485,18 @@ fn check(request: &Request) -> Result<(), BakeError> {
                 "--light-samples must be between 1 and 1024, got {k}"
             )));
         }
+    }
+    if let Some(k) = request.sky_samples {
+        let most = direct::sky::MAX_SKY_SAMPLES;
+        if !(1..=most).contains(&k) {
+            return Err(BakeError::Options(format!(
+                "--sky-samples must be between 1 and {most}, got {k}"
+            )));
+        }
+    }
+    if let Some(sky) = &request.sky {
+        sky.check()
+            .map_err(|e| BakeError::Options(format!("--sky: {e}")))?;
     }
     if (request.save_links || request.load_links.is_some())
         && (request.transport == TransportKind::Dense || request.solver == Some(SolverKind::Direct))

@@ -26,6 +26,8 @@
 //!
 //! It is not the radiosity solver and knows nothing of form factors, links or presets.
 
+pub mod sky;
+
 use glam::{DVec2, DVec3};
 use mesher::ElementMesh;
 use rayon::prelude::*;

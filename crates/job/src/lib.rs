@@ -24,8 +24,9 @@ use std::time::Instant;
 
 pub use bake_core::presets::Quality;
 pub use bake_core::{
-    EstimatorKind, Progress, Request, SolverKind, TransportKind, DEFAULT_MAX_REFLECTANCE,
-    MAX_BOUNCES,
+    EstimatorKind, Progress, Request, Sky, SkyModel, SolverKind, TransportKind,
+    DEFAULT_GROUND_REFLECTANCE, DEFAULT_MAX_REFLECTANCE, DEFAULT_SKY_SAMPLES, MAX_BOUNCES,
+    MAX_SKY_SAMPLES,
 };
 pub use form_factor::ContourOptions;
 pub use lightmap::{UvMode, DEFAULT_MAX_ATLASES, DEFAULT_MAX_SIZE};
@@ -53,11 +54,27 @@ pub enum Target {
     BakedTexture,
 }
 
-/// `--exposure`: `auto`, or a number (checked to be finite and ≥ 0 before the bake).
+/// `--exposure`: `auto`, a number (checked to be finite and ≥ 0 before the bake), or
+/// `ev100:N`, a camera's exposure value at ISO 100.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Exposure {
     Auto,
     Value(f64),
+    /// Exposure value N at ISO 100: the luminance `1.2 × 2^N` cd/m² maps to 1 (the
+    /// saturation-based sensor model of ISO 12232 with the 78/65 ≈ 1.2 factor; sunny 16 is
+    /// N ≈ 15, an overcast day N ≈ 12, an office interior N ≈ 7).
+    Ev100(f64),
+}
+
+impl Exposure {
+    /// The multiplier: a given value, or `1 / (1.2 × 2^N)` for `ev100:N`; `None` for `auto`.
+    pub fn factor(&self) -> Option<f64> {
+        match *self {
+            Exposure::Auto => None,
+            Exposure::Value(x) => Some(x),
+            Exposure::Ev100(n) => Some(1.0 / (1.2 * n.exp2())),
+        }
+    }
 }
 
 impl std::str::FromStr for Exposure {
@@ -67,9 +84,16 @@ impl std::str::FromStr for Exposure {
         if text.eq_ignore_ascii_case("auto") {
             return Ok(Exposure::Auto);
         }
+        if let Some(n) = text.strip_prefix("ev100:") {
+            return match n.trim().parse::<f64>() {
+                Ok(n) if n.is_finite() && n.abs() <= 64.0 => Ok(Exposure::Ev100(n)),
+                Ok(n) => Err(format!("ev100:N needs N in [−64, 64], got {n}")),
+                Err(e) => Err(format!("{e} (expected ev100:N, N a number)")),
+            };
+        }
         text.parse::<f64>()
             .map(Exposure::Value)
-            .map_err(|e| format!("{e} (expected a number or `auto`)"))
+            .map_err(|e| format!("{e} (expected a number, `auto` or `ev100:N`)"))
     }
 }
 
@@ -521,13 +545,10 @@ fn build_lightmap<E: Events>(
 
 /// The exposure the vertex bake uses (`auto`: from the elements' radiosities).
 fn exposure(job: &Job, bake: &bake_core::Bake) -> f64 {
-    match job.exposure {
-        Exposure::Value(x) => x,
-        Exposure::Auto => {
-            let areas: Vec<f64> = bake.mesh.elements.iter().map(|e| e.area).collect();
-            exporter::auto_exposure(&areas, &bake.solution.b)
-        }
-    }
+    job.exposure.factor().unwrap_or_else(|| {
+        let areas: Vec<f64> = bake.mesh.elements.iter().map(|e| e.area).collect();
+        exporter::auto_exposure(&areas, &bake.solution.b)
+    })
 }
 
 /// The bake's warnings: shown through [`Events::warn`] as they arise and kept for the report

@@ -39,10 +39,14 @@ pub(crate) fn line(
         let rays: u64 = bake.light_stats.iter().map(|s| s.rays_cast).sum();
         hardness += &format!(", {} lights ({rays} light rays)", scene.lights.len());
     }
+    if let Some(sky) = &bake.sky_stats {
+        hardness += &format!(", sky ({} sky rays)", sky.rays_cast);
+    }
     match job.exposure {
         Exposure::Auto => hardness += &format!(", exposure auto = {exposure:.4e}"),
         Exposure::Value(x) if x != 1.0 => hardness += &format!(", exposure {x}"),
         Exposure::Value(_) => {}
+        Exposure::Ev100(n) => hardness += &format!(", exposure ev100:{n} = {exposure:.4e}"),
     }
     if let Some(built) = lightmap {
         hardness += &lightmap_part(built);

@@ -118,6 +118,22 @@ impl Tree {
         self.any_where(|node, oct| local.hit_mask(node, oct), pred)
     }
 
+    /// Whether `pred(piece)` holds for some piece whose padded box may reach the half-space
+    /// `n · x > d` (world units; `n` a unit vector). Stops at the first.
+    pub fn any_in_front(&self, n: DVec3, d: f64, pred: impl FnMut(usize) -> bool) -> bool {
+        // The frame's scale is uniform: n is unchanged, d moves with the centre.
+        let local = Vec3A::from(n.as_vec3());
+        let level = ((d - n.dot(self.centre)) / self.scale) as f32 - PAD;
+        self.any_where(
+            |node, oct| {
+                child_mask(node, oct, |centre, half| {
+                    local.dot(centre) + local.abs().dot(half) > level
+                })
+            },
+            pred,
+        )
+    }
+
     /// Calls `f(piece)` for every piece whose padded box overlaps the box lo–hi (world units).
     pub fn for_each_in_box(&self, lo: DVec3, hi: DVec3, f: impl FnMut(usize)) {
         let query = self.query_box(lo, hi);
@@ -247,22 +263,28 @@ impl LocalSlabs {
     /// (built as `CwBvhNode::intersect_aabb` builds it).
     #[inline]
     fn hit_mask(&self, node: &CwBvhNode, oct_inv4: u32) -> u32 {
-        let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
-        let mut mask = 0;
-        for child in 0..8 {
-            let b = node.child_aabb(child);
-            let centre = (b.min + b.max) * 0.5;
-            let half = (b.max - b.min) * 0.5;
-            let separated = (0..self.count).any(|k| {
+        child_mask(node, oct_inv4, |centre, half| {
+            !(0..self.count).any(|k| {
                 let a = self.axes[k];
                 let c = a.dot(centre);
                 let r = a.abs().dot(half);
                 c + r < self.lo[k] || c - r > self.hi[k]
-            });
-            if !separated {
-                mask |= extract_byte64(child_bits8, child) << extract_byte64(bit_index8, child);
-            }
-        }
-        mask
+            })
+        })
     }
+}
+
+/// obvhs's hit mask of the node's children whose boxes (centre, half size) `keep` keeps
+/// (built as `CwBvhNode::intersect_aabb` builds it).
+#[inline]
+fn child_mask(node: &CwBvhNode, oct_inv4: u32, keep: impl Fn(Vec3A, Vec3A) -> bool) -> u32 {
+    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+    let mut mask = 0;
+    for child in 0..8 {
+        let b = node.child_aabb(child);
+        if keep((b.min + b.max) * 0.5, (b.max - b.min) * 0.5) {
+            mask |= extract_byte64(child_bits8, child) << extract_byte64(bit_index8, child);
+        }
+    }
+    mask
 }

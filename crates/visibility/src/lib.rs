@@ -395,6 +395,25 @@ impl Occluders {
         })
     }
 
+    /// Conservative, for light from a whole hemisphere (a sky): `false` only when no polygon
+    /// other than the receiver's has a corner more than the plane tolerance in front of the
+    /// receiver's plane, so that no ray leaving the receiver's front can meet one. Finds
+    /// candidates in the BVH, stops at the first.
+    pub fn any_in_front(&self, receiver: &Patch) -> bool {
+        let Some(tree) = &self.tree else { return false };
+        let tol = self.tol();
+        let n = receiver.normal();
+        let d = n.dot(receiver.corners()[0]) + tol;
+        tree.any_in_front(n, d, |k| {
+            k != receiver.polygon()
+                && self.pieces[k]
+                    .patch
+                    .corners()
+                    .iter()
+                    .any(|&x| receiver.height(x) > tol)
+        })
+    }
+
     /// Every polygon [`Occluders::can_shadow`] would find, sorted, into `out` (cleared).
     pub fn shadow_candidates(&self, receiver: &Patch, far: &[DVec3], out: &mut Vec<usize>) {
         out.clear();

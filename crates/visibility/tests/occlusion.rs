@@ -495,3 +495,32 @@ fn first_hit_finds_the_nearest_polygon_and_its_side() {
         None
     );
 }
+
+/// `any_in_front` (the sky's test): a polygon with only coplanar or behind neighbours has
+/// nothing in front; one that another polygon rises above has.
+#[test]
+fn what_is_in_front_of_a_polygon_is_found() {
+    let with_ceiling = block_on_floor();
+    let occluders = Occluders::new(&with_ceiling).unwrap();
+    // Floor, ceiling, block top (under the ceiling), a block side (the floor reaches past it).
+    for k in [0, 1, 2, 3] {
+        assert!(occluders.any_in_front(&occluders.polygon(k)), "polygon {k}");
+    }
+    // Without the ceiling, the block's top has only the floor below and sides ending at its
+    // own plane: nothing in front.
+    let open: Vec<Polygon> = with_ceiling
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| *k != 1)
+        .map(|(_, p)| p.clone())
+        .collect();
+    let occluders = Occluders::new(&open).unwrap();
+    assert!(
+        !occluders.any_in_front(&occluders.polygon(1)),
+        "open block top"
+    );
+    assert!(
+        occluders.any_in_front(&occluders.polygon(0)),
+        "floor beside the block"
+    );
+}

@@ -1,7 +1,7 @@
 //! The bake report (`--report`) filled from the bake's result, the job's options, the
 //! lightmap and each stage's time and peak memory.
 
-use super::{ElementsIncluded, LightEntry, Report, SolverInfo, SolverMethod};
+use super::{ElementsIncluded, LightEntry, Report, SkyEntry, SolverInfo, SolverMethod};
 use crate::{internal, Events, Exposure, Failure, Job, Target, Warnings, REPORT_ELEMENTS_LIMIT};
 use anyhow::Context;
 use lightmap::UvMode;
@@ -90,10 +90,12 @@ impl Baked<'_> {
             entry.rho = bake.rho[i];
             entry.e = bake.emission[i];
             entry.direct = bake.direct[i];
+            entry.sky = bake.sky_stats.is_some().then(|| bake.sky[i]);
             entry.h = bake.irradiance.as_ref().map(|h| h[i]);
             entry.error = bake.error.get(i).map(|p| p.total());
         }
         report.lights = light_entries(scene, bake);
+        report.sky = sky_entry(bake);
         report.counts = bake.counts;
         report.effects = bake.effects.clone();
         report.transport = bake.plan.transport().clone();
@@ -141,6 +143,7 @@ impl Baked<'_> {
             "exposure_rule": match job.exposure {
                 Exposure::Auto => "auto: the 99th percentile (by area) of the elements' brightest band maps to 0.8",
                 Exposure::Value(_) => "given",
+                Exposure::Ev100(_) => "ev100:N: 1 / (1.2 × 2^N)",
             },
             "keep_lights": job.keep_lights,
             "output": job.output.display().to_string(),
@@ -219,6 +222,18 @@ fn light_entries(scene: &importer::Scene, bake: &bake_core::Bake) -> Vec<LightEn
             }
         })
         .collect()
+}
+
+/// The report's `sky`: the sky the bake used and what its pass took.
+fn sky_entry(bake: &bake_core::Bake) -> Option<SkyEntry> {
+    let (sky, stats) = (bake.plan.settings().sky()?, bake.sky_stats?);
+    Some(SkyEntry {
+        sky,
+        horizontal_illuminance: sky.model.horizontal_illuminance(),
+        ground_radiance: sky.ground_radiance(),
+        stats,
+        delivered: [stats.flux / std::f64::consts::PI; 3],
+    })
 }
 
 /// What a report keeps per element: the user's choice, else all up to

@@ -19,7 +19,9 @@ pub(crate) use build::{Baked, Stages};
 pub use failed::{read_failed_report, write_failed_report, FailedReport, FailureEntry};
 
 use bake_core::refine::Refinement;
-use bake_core::{Accuracy, Counts, Effects, EnergyBalance, LightStats, TransportChoice};
+use bake_core::{
+    Accuracy, Counts, Effects, EnergyBalance, LightStats, Sky, SkyStats, TransportChoice,
+};
 use exporter::{ExportError, OutputSet};
 use mesher::ElementMesh;
 use scene::{Scene, Side};
@@ -30,8 +32,8 @@ use std::path::Path;
 /// The version of this report's layout (2: `solver.condition`, `solver.iterations`, the
 /// `iterative` method and the `energy` object; 4: `lights`, `energy.delivered`, elements'
 /// `direct`; 5: elements' `h`; 6: `elements_included`, `element_summary`, the `accuracy`
-/// object and elements' `error`).
-pub const SCHEMA_VERSION: u32 = 6;
+/// object and elements' `error`; 7: `sky` and elements' `sky`).
+pub const SCHEMA_VERSION: u32 = 7;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Report {
@@ -64,6 +66,9 @@ pub struct Report {
     /// The punctual lights the bake used (absent in older reports).
     #[serde(default)]
     pub lights: Vec<LightEntry>,
+    /// The sky the bake used (`--sky`), and what it took (absent without one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sky: Option<SkyEntry>,
     /// The target error of `b`, the form-factor tolerance it chose and the bound the solve
     /// leaves (absent in older reports).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -173,6 +178,25 @@ pub struct SolverInfo {
     pub iterations: [u32; 3],
 }
 
+/// The sky a bake used and what its pass took.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SkyEntry {
+    /// `model` (`uniform` with `radiance`, `overcast` with `zenith`) and
+    /// `ground_reflectance`.
+    #[serde(flatten)]
+    pub sky: Sky,
+    /// The sky's unobstructed horizontal illuminance E_h (lux, for radiance in cd/m²).
+    pub horizontal_illuminance: f64,
+    /// The ground's radiance below the horizon, `ground_reflectance × E_h / π`.
+    pub ground_radiance: f64,
+    /// Rays cast, elements that receive sky or ground light, elements given the closed form
+    /// (nothing can block them) and elements sampled by rays.
+    #[serde(flatten)]
+    pub stats: SkyStats,
+    /// `Σ A_i E_i / π` per band: what the sky delivered, in the energy unit.
+    pub delivered: [f64; 3],
+}
+
 /// One punctual light the bake used, in world space, and what its direct light took.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LightEntry {
@@ -246,6 +270,10 @@ pub struct ElementEntry {
     /// The part of `b` straight from punctual lights, `ρ E / π` (absent in older reports: 0).
     #[serde(default)]
     pub direct: [f64; 3],
+    /// The part of `b` straight from the sky and the ground below it, `ρ E_sky / π`
+    /// (absent without `--sky`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sky: Option<[f64; 3]>,
     /// The irradiance H (`b = e + ρ H`, before exposure) when the bake computed it (a
     /// lightmap, or a textured material, whose vertex-bake `COLOR_0` is H).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -280,6 +308,7 @@ impl Report {
             effects: Effects::default(),
             transport: TransportChoice::default(),
             lights: Vec::new(),
+            sky: None,
             accuracy: None,
             refinement: None,
             warnings: scene.warnings.clone(),
@@ -356,6 +385,7 @@ impl Report {
                     e: material.emission,
                     b: *b,
                     direct: [0.0; 3],
+                    sky: None,
                     h: None,
                     error: None,
                 })
@@ -407,6 +437,9 @@ fn check_finite(report: &Report) -> Result<(), ExportError> {
                 element_name(report, i)
             ));
         }
+        if let Some(sky) = element.sky.filter(|e| !all_finite(e)) {
+            return not_finite(format!("report {}: sky {sky:?}", element_name(report, i)));
+        }
         if let Some(error) = element.error.filter(|e| !all_finite(e)) {
             return not_finite(format!(
                 "report {}: error {error:?}",
@@ -424,6 +457,15 @@ fn check_finite(report: &Report) -> Result<(), ExportError> {
             .chain(std::iter::once(&light.intensity));
         if !values.copied().all(f64::is_finite) {
             return not_finite(format!("report light on node {}", light.node));
+        }
+    }
+    if let Some(sky) = &report.sky {
+        let values = sky
+            .delivered
+            .iter()
+            .chain([&sky.horizontal_illuminance, &sky.ground_radiance]);
+        if !values.copied().all(f64::is_finite) {
+            return not_finite("report sky".to_string());
         }
     }
     if let Some((stage, seconds)) = report.timings.iter().find(|(_, s)| !s.is_finite()) {

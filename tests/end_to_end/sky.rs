@@ -1,0 +1,402 @@
+//! A sky as a light source (issue 35), end to end through the binary, against closed forms:
+//! - an open courtyard (a 10 × 10 m floor of ρ = 0.5, four black walls 5 m high, open top)
+//!   under `--sky uniform:1`: each floor element's b is ρ L times its area-averaged view
+//!   factor to the 10 × 10 m opening (the walls are black, so nothing else reaches it, and
+//!   they hide all of the ground);
+//! - the same courtyard under a one-sided roof whose back faces the floor: no sky at all;
+//! - an open floor: ρ L exactly, from the closed form, with no ray cast;
+//! - the same output bytes for 1 and 2 threads.
+
+use crate::common;
+
+use common::{bake_json, lit_scene};
+use serde_json::Value;
+use std::f64::consts::PI;
+
+const RHO: f64 = 0.5;
+const HALF: f64 = 5.0;
+const HEIGHT: f64 = 5.0;
+
+/// Two triangles of the planar quad a b c d, wound so that its normal is `normal`'s side.
+fn quad(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3], normal: [f64; 3]) -> Vec<[f32; 3]> {
+    let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+    let (u, v) = (sub(b, a), sub(c, a));
+    let cross = [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ];
+    let along: f64 = (0..3).map(|k| cross[k] * normal[k]).sum();
+    let f = |p: [f64; 3]| p.map(|x| x as f32);
+    if along > 0.0 {
+        vec![f(a), f(b), f(c), f(a), f(c), f(d)]
+    } else {
+        vec![f(a), f(c), f(b), f(a), f(d), f(c)]
+    }
+}
+
+fn floor() -> Vec<[f32; 3]> {
+    let h = HALF;
+    quad(
+        [-h, 0.0, -h],
+        [h, 0.0, -h],
+        [h, 0.0, h],
+        [-h, 0.0, h],
+        [0.0, 1.0, 0.0],
+    )
+}
+
+/// The four walls, each facing the courtyard's inside.
+fn walls() -> Vec<[f32; 3]> {
+    let (h, y) = (HALF, HEIGHT);
+    let mut all = Vec::new();
+    all.extend(quad(
+        [-h, 0.0, -h],
+        [-h, 0.0, h],
+        [-h, y, h],
+        [-h, y, -h],
+        [1.0, 0.0, 0.0],
+    ));
+    all.extend(quad(
+        [h, 0.0, -h],
+        [h, 0.0, h],
+        [h, y, h],
+        [h, y, -h],
+        [-1.0, 0.0, 0.0],
+    ));
+    all.extend(quad(
+        [-h, 0.0, -h],
+        [h, 0.0, -h],
+        [h, y, -h],
+        [-h, y, -h],
+        [0.0, 0.0, 1.0],
+    ));
+    all.extend(quad(
+        [-h, 0.0, h],
+        [h, 0.0, h],
+        [h, y, h],
+        [-h, y, h],
+        [0.0, 0.0, -1.0],
+    ));
+    all
+}
+
+fn courtyard(roof: bool) -> Value {
+    let mut meshes = vec![(floor(), [RHO; 3]), (walls(), [0.0; 3])];
+    if roof {
+        // One-sided, its front up: the floor sees only its back.
+        let (h, y) = (HALF, HEIGHT);
+        let lid = quad(
+            [-h, y, -h],
+            [h, y, -h],
+            [h, y, h],
+            [-h, y, h],
+            [0.0, 1.0, 0.0],
+        );
+        meshes.push((lid, [RHO; 3]));
+    }
+    lit_scene(&meshes, &[])
+}
+
+/// The view factor from a point to a parallel rectangle at height `h` with one corner right
+/// above it, sides `a` and `b` (Howell's catalogue, C-11).
+fn corner_rectangle(a: f64, b: f64, h: f64) -> f64 {
+    let (x, y) = (a / h, b / h);
+    let (sx, sy) = ((1.0 + x * x).sqrt(), (1.0 + y * y).sqrt());
+    (x / sx * (y / sx).atan() + y / sy * (x / sy).atan()) / (2.0 * PI)
+}
+
+/// The view factor from the floor point (x, z) to the 10 × 10 m opening: its four corner
+/// rectangles.
+fn opening(x: f64, z: f64) -> f64 {
+    let sides = |c: f64| [HALF - c, HALF + c];
+    let mut f = 0.0;
+    for a in sides(x) {
+        for b in sides(z) {
+            f += corner_rectangle(a, b, HEIGHT);
+        }
+    }
+    f
+}
+
+/// The view factor averaged over the square element of `area` centred at `centroid`
+/// (the floor's elements are squares of a square grid): a 16 × 16 midpoint rule.
+fn element_opening(centroid: [f64; 3], area: f64) -> f64 {
+    let side = area.sqrt();
+    let m = 16;
+    let mut sum = 0.0;
+    for i in 0..m {
+        for j in 0..m {
+            let x = centroid[0] + side * ((i as f64 + 0.5) / m as f64 - 0.5);
+            let z = centroid[2] + side * ((j as f64 + 0.5) / m as f64 - 0.5);
+            sum += opening(x, z);
+        }
+    }
+    sum / (m * m) as f64
+}
+
+/// The courtyard (with a roof or not) baked under `--sky uniform:1`, elements of `size`, no
+/// refinement, `samples` sky rays per element.
+fn bake_courtyard(
+    dir: &std::path::Path,
+    name: &str,
+    roof: bool,
+    size: &str,
+    samples: &str,
+) -> bake_job::report::Report {
+    let args = [
+        "--sky",
+        "uniform:1",
+        "--max-element-size",
+        size,
+        "--refine",
+        "off",
+        "--sky-samples",
+        samples,
+    ];
+    bake_json(dir, name, &courtyard(roof), &args)
+}
+
+fn is_floor(e: &bake_job::report::ElementEntry) -> bool {
+    e.normal[1] > 0.999 && e.centroid[1].abs() < 1e-9
+}
+
+#[test]
+fn the_reference_view_factor_is_0_554_at_the_centre() {
+    assert!((opening(0.0, 0.0) - 0.5541).abs() < 1e-4);
+}
+
+#[test]
+fn a_black_walled_courtyard_matches_the_view_factor_to_its_opening() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let report = bake_courtyard(dir.path(), "courtyard", false, "0.5", "16384");
+    let floor: Vec<_> = report.elements.iter().filter(|e| is_floor(e)).collect();
+    assert_eq!(floor.len(), 400, "a 20 × 20 grid on the floor");
+    let (mut sum_sq, mut area, mut worst) = (0.0, 0.0, 0.0f64);
+    for e in &floor {
+        let reference = RHO * element_opening(e.centroid, e.area);
+        let relative = (e.b[0] - reference) / reference;
+        sum_sq += e.area * relative * relative;
+        area += e.area;
+        worst = worst.max(relative.abs());
+        // The sky is grey; the part of b from it is all of b here.
+        assert_eq!(e.b[0], e.b[2]);
+        let sky = e.sky.expect("per-element sky");
+        assert!((sky[0] - e.b[0]).abs() <= 1e-12 * e.b[0]);
+    }
+    let rms = (sum_sq / area).sqrt();
+    eprintln!("courtyard: RMS {rms:.2e}, worst {worst:.2e} relative to the closed form");
+    assert!(rms <= 5e-3, "RMS {rms:.2e} of the closed form");
+    assert!(worst <= 2e-2, "worst {worst:.2e} of the closed form");
+
+    let sky = report.sky.expect("the report's sky");
+    let per_element = report.options["sky_samples"].as_u64().expect("sky_samples");
+    // Every element (floor and walls) has some polygon in front of it: all sampled.
+    assert_eq!(sky.stats.elements_exact, 0);
+    assert_eq!(
+        sky.stats.rays_cast,
+        sky.stats.elements_sampled * per_element,
+        "a square number of rays per element"
+    );
+    assert_eq!(sky.stats.elements_sampled as usize, report.elements.len());
+    assert!(
+        report.timings.contains_key("sky_light"),
+        "the sky's own stage"
+    );
+    // All the sky light that enters the opening lands on the floor or the walls: π L × 100 m²
+    // of flux, 100 in the energy unit (flux / π). Measured: 100.0019.
+    assert!(
+        (sky.delivered[0] - 100.0).abs() < 1e-3 * 100.0,
+        "delivered {}",
+        sky.delivered[0]
+    );
+    // What the sky delivered is what the energy balance counts.
+    let energy = report.energy.expect("energy");
+    assert!((energy.delivered[0] - sky.delivered[0]).abs() <= 1e-9 * sky.delivered[0]);
+    assert!(!report
+        .warnings
+        .iter()
+        .any(|w| w.contains("no emitters and no lights")));
+}
+
+#[test]
+fn a_one_sided_roof_seen_from_below_admits_no_sky() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let report = bake_courtyard(dir.path(), "roofed", true, "1", "256");
+    let floor: Vec<_> = report.elements.iter().filter(|e| is_floor(e)).collect();
+    assert_eq!(floor.len(), 100);
+    assert!(
+        floor.iter().all(|e| e.b == [0.0; 3]),
+        "light under the roof"
+    );
+    // The roof's top sees the whole sky: ρ L exactly, from the closed form.
+    let top: Vec<_> = report
+        .elements
+        .iter()
+        .filter(|e| (e.centroid[1] - HEIGHT).abs() < 1e-9)
+        .collect();
+    assert_eq!(top.len(), 100);
+    assert!(top.iter().all(|e| (e.b[0] - RHO).abs() < 1e-12));
+    let sky = report.sky.expect("the report's sky");
+    assert_eq!(sky.stats.elements_exact, 100);
+    assert!(sky.stats.rays_cast > 0);
+}
+
+#[test]
+fn an_open_floor_gets_the_closed_form_and_casts_no_ray() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let doc = lit_scene(&[(floor(), [RHO; 3])], &[]);
+    for (sky, expected) in [
+        ("uniform:2", RHO * 2.0),
+        // E_h = 7π Lz / 9; b = ρ E_h / π.
+        ("overcast:9", RHO * 7.0),
+    ] {
+        let report = bake_json(dir.path(), "open", &doc, &["--sky", sky]);
+        assert!(!report.elements.is_empty());
+        for e in &report.elements {
+            assert!(
+                (e.b[0] - expected).abs() <= 1e-12 * expected,
+                "{sky}: b = {} against {expected}",
+                e.b[0]
+            );
+        }
+        let stats = report.sky.expect("the report's sky").stats;
+        assert_eq!(stats.rays_cast, 0, "{sky}: nothing can block the sky");
+        assert_eq!(stats.elements_exact as usize, report.elements.len());
+        assert_eq!(stats.elements_lit as usize, report.elements.len());
+        // Delivered: Σ A E / π = 100 m² × b / ρ.
+        let delivered = report.energy.expect("energy").delivered[0];
+        assert!((delivered - 100.0 * expected / RHO).abs() < 1e-9 * delivered);
+    }
+}
+
+#[test]
+fn sky_light_is_the_same_bytes_for_any_thread_count() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let input = dir.path().join("courtyard.gltf");
+    common::write_json(&input, &courtyard(false));
+    common::assert_same_bytes_for_thread_counts(
+        dir.path(),
+        &input,
+        &["1", "2"],
+        &[
+            "--target",
+            "vertex",
+            "--sky",
+            "overcast:3",
+            "--sky-samples",
+            "64",
+            "--max-element-size",
+            "1",
+        ],
+        &["gltf", "bin"],
+    );
+}
+
+/// A 2 × 2 m wall (ρ = 0.5) facing +x under `--sky overcast:Lz` with a ground of R = 0.3, and
+/// a 1 × 1 m black square 100 m away in front of it, there only so that the wall is sampled
+/// by rays (it hides about 1e-4 sr). The wall sees half the sky and half the ground:
+/// E = Lz/3 (π/2 + 4/3) + π L_g / 2 with L_g = R × 7 Lz / 9 (written here from the sky's
+/// definition: ∫ (1 + 2 sin γ) cos θ dω over the quarter sphere is π/2 + 2 × 2/3).
+#[test]
+fn rays_on_a_vertical_wall_see_half_the_overcast_sky_and_half_the_ground() {
+    let (lz, r) = (3.0, 0.3);
+    let wall = quad(
+        [0.0, 0.0, -1.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 2.0, 1.0],
+        [0.0, 2.0, -1.0],
+        [1.0, 0.0, 0.0],
+    );
+    let far = quad(
+        [100.0, 0.5, -0.5],
+        [100.0, 0.5, 0.5],
+        [100.0, 1.5, 0.5],
+        [100.0, 1.5, -0.5],
+        [-1.0, 0.0, 0.0],
+    );
+    let doc = lit_scene(&[(wall, [RHO; 3]), (far, [0.0; 3])], &[]);
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let report = bake_json(
+        dir.path(),
+        "wall",
+        &doc,
+        &[
+            "--sky",
+            "overcast:3",
+            "--ground-reflectance",
+            "0.3",
+            "--subdiv",
+            "2",
+            "--refine",
+            "off",
+            "--sky-samples",
+            "1024",
+        ],
+    );
+    let ground = r * 7.0 * PI * lz / 9.0 / PI;
+    let e = lz / 3.0 * (PI / 2.0 + 4.0 / 3.0) + PI * ground / 2.0;
+    let expected = RHO * e / PI;
+    let walls: Vec<_> = report
+        .elements
+        .iter()
+        .filter(|e| e.normal[0] > 0.999)
+        .collect();
+    assert_eq!(walls.len(), 4);
+    let mut worst = 0.0f64;
+    for w in walls {
+        let relative = (w.b[0] - expected) / expected;
+        worst = worst.max(relative.abs());
+        assert!(relative.abs() < 5e-3, "b = {} against {expected}", w.b[0]);
+    }
+    eprintln!("wall under the overcast sky: worst {worst:.2e} of the closed form");
+    let sky = report.sky.expect("the report's sky");
+    assert_eq!(sky.stats.rays_cast, 8 * 1024, "every element sampled");
+}
+
+#[test]
+fn a_sky_that_is_not_one_is_refused_with_a_readable_line() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let input = dir.path().join("open.gltf");
+    common::write_json(&input, &lit_scene(&[(floor(), [RHO; 3])], &[]));
+    let out = dir.path().join("out.gltf");
+    for (args, says) in [
+        (["--sky", "clear"], "uniform:L or overcast:Lz"),
+        (["--sky", "uniform:-2"], "finite number ≥ 0"),
+        (["--ground-reflectance", "1.5"], "reflectance in [0, 1]"),
+    ] {
+        let run = common::bake([
+            "--quiet",
+            input.to_str().expect("UTF-8 path"),
+            out.to_str().expect("UTF-8 path"),
+            args[0],
+            args[1],
+        ]);
+        assert_eq!(run.code, Some(2), "{args:?}: {run:#?}");
+        assert!(run.stderr.contains(says), "{args:?}: {}", run.stderr);
+    }
+}
+
+/// `--exposure ev100:N` is 1 / (1.2 × 2^N): with N = 3 an open floor of b = 9.6 cd/m²
+/// (ρ = 0.5 under `uniform:19.2`) is exposed to exactly 1.
+#[test]
+fn ev100_exposure_maps_1_2_times_2_to_the_n_to_one() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let doc = lit_scene(&[(floor(), [RHO; 3])], &[]);
+    let report = bake_json(
+        dir.path(),
+        "ev100",
+        &doc,
+        &["--sky", "uniform:19.2", "--exposure", "ev100:3"],
+    );
+    let exposure = report.options["exposure"]
+        .as_f64()
+        .expect("the exposure used");
+    assert_eq!(exposure, 1.0 / 9.6);
+    for e in &report.elements {
+        assert!((e.b[0] * exposure - 1.0).abs() < 1e-12);
+    }
+    let run = common::bake(["--exposure", "ev100:many", "a.gltf", "b.gltf"]);
+    assert_eq!(run.code, Some(2));
+    assert!(run.stderr.contains("ev100:N"), "{}", run.stderr);
+}
