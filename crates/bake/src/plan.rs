@@ -397,13 +397,12 @@ pub(crate) fn finer_start(
     scene: &SceneSummary,
     polygons: &[scene::Polygon],
 ) -> Result<Option<Settings>, BakeError> {
-    let applies = settings.transport == TransportKind::Auto
-        && settings.refine
+    // `settings.refine` is off when links are saved or loaded; `plan.small()` below holds
+    // only under `--transport auto`, where `scene.occluded` is asked.
+    let applies = settings.refine
         && settings.refine_smooth()
         && !settings.warn_refinement
         && !settings.subdivision_requested
-        && !settings.save_links
-        && settings.load_links.is_none()
         && !scene.lights
         && !scene.occluded;
     let mesher::Subdivision::MaxSize(size) = settings.subdivision else {

@@ -145,9 +145,10 @@ impl Lightmap {
             let field = &self.fields[s];
             // The field at the points of s within r of x: a 7 × 7 grid of its plane around
             // x's projection, each point taken into s (its nearest point of s: a sliver thinner
-            // than the grid's spacing is still sampled), and its corners.
+            // than the grid's spacing is still sampled), and its corners. A polygon whose
+            // nearest point is out of reach is neither sampled nor gone through (p and q hold
+            // x itself).
             let centre = field.to_plane(x);
-            let mut reached = false;
             let near = field.to_world(nearest_in(&field.corners, centre));
             if near.distance(x) > r {
                 continue;
@@ -162,7 +163,6 @@ impl Lightmap {
             if grid == 0 {
                 let c = poly.vertices.iter().copied().sum::<DVec3>() / poly.vertices.len() as f64;
                 take(self.irradiance_at(s, c));
-                reached = true;
             }
             for i in -grid..=grid {
                 for j in -grid..=grid {
@@ -171,18 +171,13 @@ impl Lightmap {
                     let world = field.to_world(y);
                     if world.distance(x) <= r {
                         take(self.irradiance_at(s, world));
-                        reached = true;
                     }
                 }
             }
             for &v in &poly.vertices {
                 if v.distance(x) <= r {
                     take(self.irradiance_at(s, v));
-                    reached = true;
                 }
-            }
-            if !reached && s != p && s != q {
-                continue;
             }
             for &t in &around[s] {
                 if !seen.contains(&t) && seen.len() < MAX_FOOTPRINT_POLYGONS {
