@@ -528,8 +528,8 @@ fn square_meets(c: DVec2, r: f64, uv: &[DVec2]) -> bool {
     })
 }
 
-/// Footprints written, gutters = nearest chart texel, mip-0/mip-1 reads inside the chart,
-/// regions apart, UVs inside [0, 1]. Returns (occupancy, chart texels).
+/// Footprints written, gutters = nearest chart texel, mip-0/mip-1 reads inside the chart
+/// (so regions never read each other), UVs inside [0, 1]. Returns (occupancy, chart texels).
 fn check_atlas(lightmap: &Lightmap, what: &str) -> f64 {
     let w = lightmap.width as usize;
     let at = |x: usize, y: usize| y * w + x;
@@ -538,26 +538,17 @@ fn check_atlas(lightmap: &Lightmap, what: &str) -> f64 {
         .iter()
         .map(|c| c.uv.iter().map(|&p| DVec2::from_array(p)).collect())
         .collect();
-    // Regions apart and inside the atlas; UVs in [0, 1] and inside their region.
+    // Regions inside the atlas; UVs in [0, 1] and inside their region. Regions are not
+    // asked to be apart as rectangles (mask-packed charts fit into each other's corners):
+    // what must hold is that every texel a region's polygons read is its own (below).
     for (a, chart) in lightmap.charts.iter().enumerate() {
         let r = chart.region;
         assert!(r.x + r.width <= lightmap.width && r.y + r.height <= lightmap.height);
         for (k, p) in uvs[a].iter().enumerate() {
             let t = lightmap.texcoord(a, k);
             assert!(t.iter().all(|c| (0.0..=1.0).contains(c)), "{what}: {t:?}");
-            assert!(p.x >= f64::from(r.x) + 3.0 && p.x <= f64::from(r.x + r.width) - 3.0);
-            assert!(p.y >= f64::from(r.y) + 3.0 && p.y <= f64::from(r.y + r.height) - 3.0);
-        }
-        for other in &lightmap.charts[a + 1..] {
-            let s = other.region;
-            if s == r {
-                continue; // two triangles sharing one rectangle
-            }
-            let apart = r.x + r.width <= s.x
-                || s.x + s.width <= r.x
-                || r.y + r.height <= s.y
-                || s.y + s.height <= r.y;
-            assert!(apart, "{what}: regions {r:?} and {s:?} overlap");
+            assert!(p.x >= f64::from(r.x) && p.x <= f64::from(r.x + r.width));
+            assert!(p.y >= f64::from(r.y) && p.y <= f64::from(r.y + r.height));
         }
     }
     // The polygons of one region: a grouped chart's, or two triangles sharing a rectangle, or
@@ -588,8 +579,10 @@ fn check_atlas(lightmap: &Lightmap, what: &str) -> f64 {
                     footprint.push((x, y));
                     chart_texels += 1;
                 }
-                // Read at mip 1 (level-0 centres within 2.5 texels): this region's own.
-                if members.iter().any(|&p| square_meets(c, 2.5, &uvs[p])) {
+                // Read at mip 1 (a 2×2 block whose centre lies within 2 texels of a chart
+                // point: the mip-1 texels bilinear filtering takes around it): its own.
+                let block = DVec2::new((x - x % 2) as f64 + 1.0, (y - y % 2) as f64 + 1.0);
+                if members.iter().any(|&p| square_meets(block, 2.0, &uvs[p])) {
                     assert!(
                         matches!(coverage, Texel::Chart(q) | Texel::Gutter(q) if own(q)),
                         "{what}: texel ({x}, {y}) is {coverage:?}, read by {members:?} at mip 1"

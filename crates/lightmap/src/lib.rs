@@ -1,11 +1,12 @@
-//! Lightmaps for a radiosity bake: charts (one per polygon; grouped across smooth, connected
-//! surfaces above [`GROUPED_ABOVE`] polygons where any polygons group; or the input's own `TEXCOORD_1` kept,
+//! Lightmaps for a radiosity bake: charts (one per polygon; unfolded across smooth, connected
+//! surfaces where any polygons group; or the input's own `TEXCOORD_1` kept,
 //! [`UvMode`]: the whole scene's as it is, or with `Auto` each usable primitive's in a region
 //! of its own beside generated charts) packed into one atlas — or, when they do not fit one at the texel size, into
 //! several ([`Options::max_atlases`], whole primitives per atlas, [`Lightmap::atlases`]) —
 //! and per-texel irradiance reconstructed from the element solution, ready to be written as
-//! a linear EXR and an 8-bit PNG per atlas. Not here: unwrapping of curved charts (grouped
-//! charts are projected), splitting one primitive across atlases (a primitive too large for
+//! a linear EXR and an 8-bit PNG per atlas. Not here: conformal unwrapping of doubly curved
+//! charts (grouped charts are unfolded, so a sphere is cut where its unfolding would overlap
+//! or leave a gap), splitting one primitive across atlases (a primitive too large for
 //! one atlas makes the texels coarser), alpha cut-outs.
 //!
 //! Public API: [`build`] / [`build_with`] with [`Options`] → [`Lightmap`] (its atlases:
@@ -30,12 +31,18 @@
 //! Layout rules ([`chart`]): a quad becomes a rectangle with its true aspect, a triangle a right
 //! triangle of its area so two share a rectangle; every chart has [`PADDING`] texels of its own
 //! around it and regions start on even texels. Packing uses `etagere` (a maintained shelf
-//! allocator: ~10k rectangles in milliseconds, ~85% occupancy sorted by height). Grouped
-//! charts (`group`: same node and material, connected, normals within
-//! [`CHART_CONE_DEGREES`] of the first polygon's) are projected onto their mean plane, turned
-//! to their smallest bounding rectangle and packed by a skyline packer (`pack::pack_skyline`:
-//! etagere's shelves leave the shelf of one tall chart, a terrain, empty beside it); their
-//! texels, like a kept layout's, are made over the whole atlas (`raster::atlas_texels`).
+//! allocator: ~10k rectangles in milliseconds, ~85% occupancy sorted by height). That is the
+//! layout of a scene of separate polygons (the cube, the Cornell box). Where polygons share
+//! edges, charts are grouped (`group`: same node and material, grown by unfolding each
+//! polygon about the edge it shares with the chart, across edges whose normals are within
+//! [`CREASE_DEGREES`], normals within [`CHART_CONE_DEGREES`] of the chart's first polygon's,
+//! no overlap, no part of the chart nearer in it than on the surface), so every polygon keeps
+//! its shape and texel density is the same everywhere; each chart is turned to its smallest
+//! bounding rectangle and packed by its shape (`mask`: the 2×2 blocks within reach of a
+//! bilinear read at full resolution or the first mip level; `pack::pack_masks`, a profile
+//! skyline, fits ragged charts into each other's corners), and owns those blocks: its gutter
+//! is filled from its own charts only. Their texels, like a kept layout's, are made over the
+//! whole atlas (`raster::atlas_texels`).
 //!
 //! Deterministic: the same input gives the same texels whatever the thread count.
 
@@ -44,6 +51,7 @@ mod chart;
 mod encode;
 mod field;
 mod group;
+mod mask;
 mod pack;
 mod raster;
 mod seams;
@@ -54,7 +62,7 @@ pub use encode::{
     encode_exr, encode_exr_atlas, encode_png, encode_png_atlas, encode_srgb_png, linear_to_srgb,
     png_scale, srgb_to_linear, PngLightmap, EXR_COMMENT, PNG_HEADROOM, PNG_PERCENTILE,
 };
-pub use group::{CHART_CONE_DEGREES, GROUPED_ABOVE};
+pub use group::{CHART_CONE_DEGREES, CREASE_DEGREES, GROUPED_ABOVE};
 pub use raster::DILATION_RADIUS;
 
 use field::Field;
@@ -376,7 +384,13 @@ pub fn build_with(
         // per-polygon layout beside them), or more polygons than one etagere atlas takes
         // as regions.
         let groups = (polygons.len() > GROUPED_ABOVE)
-            .then(|| group::groups(polygons))
+            .then(|| {
+                group::groups(
+                    polygons,
+                    group::largest(options),
+                    FOOTPRINT * options.texel_size,
+                )
+            })
             .filter(|g| g.len() < polygons.len() || polygons.len() > pack::MAX_REGIONS);
         match groups {
             Some(groups) => {
@@ -527,6 +541,7 @@ fn kept_lightmap(
             regions,
             chart_count: 0,
             warnings,
+            owners: None,
         },
         options,
         fields,
@@ -606,6 +621,7 @@ fn exact_layout(
         regions,
         chart_count: 0,
         warnings,
+        owners: None,
     })
 }
 
@@ -621,6 +637,9 @@ struct Assembly {
     regions: Vec<Rect>,
     chart_count: usize,
     warnings: Vec<String>,
+    /// For mask-packed layouts: per atlas, the region owning each 2×2 block (`u32::MAX`:
+    /// none), and per polygon its region; gutters are then filled from the owner's charts.
+    owners: Option<(Vec<Vec<u32>>, Vec<u32>)>,
 }
 
 fn assemble(
@@ -655,12 +674,17 @@ fn assemble(
                 }
             })
             .collect();
+        let ownership = a
+            .owners
+            .as_ref()
+            .map(|(pages, item_of)| (pages[page].as_slice(), item_of.as_slice()));
         let block = raster::atlas_texels(
             width,
             height,
             &charts,
             &fields,
             source(&flat, &vertex_values),
+            ownership,
         );
         let n = width as usize;
         for (k, t) in block.coverage.iter().enumerate() {
@@ -779,17 +803,23 @@ fn mixed_layout(
     let rest: Vec<usize> = (0..polygons.len()).filter(|&k| !owned[k]).collect();
     let groups = if rest.len() > GROUPED_ABOVE {
         let sub: Vec<Polygon> = rest.iter().map(|&k| polygons[k].clone()).collect();
-        Some(group::groups(&sub)).filter(|g| g.len() < sub.len() || sub.len() > pack::MAX_REGIONS)
+        Some(group::groups(
+            &sub,
+            group::largest(options),
+            FOOTPRINT * options.texel_size,
+        ))
+        .filter(|g| g.len() < sub.len() || sub.len() > pack::MAX_REGIONS)
     } else {
         None
     };
     packed_layout(polygons, own, &rest, groups, options)
 }
 
-/// Rectangles skyline-packed into one atlas at the requested texel size, or coarser until
-/// they fit: each `own` primitive's ([`own_item`]), and for the polygons `rest` the
-/// grouped charts `groups` (indices into `rest`), or without groups one chart per polygon
-/// (`chart::layout`).
+/// Regions mask-packed ([`pack::pack_masks`]) into one atlas at the requested texel size,
+/// or several, or coarser until they fit: each `own` primitive's ([`own_item`]), and for
+/// the polygons `rest` the unfolded charts `groups` (indices into `rest`; a polygon alone
+/// is a chart of one, in its own shape, so texel density is the same everywhere), or
+/// without groups one chart per polygon (`chart::layout`).
 fn packed_layout(
     polygons: &[Polygon],
     own: &[authored::Own],
@@ -798,15 +828,9 @@ fn packed_layout(
     options: &Options,
 ) -> Result<Assembly, LightmapError> {
     let chart_count = groups.as_ref().map_or(rest.len(), Vec::len);
-    // Polygons alone in their group keep the per-polygon layout (a quad's exact aspect, two
-    // similar triangles in one rectangle); groups of several are projected.
-    let (groups, singles): (Option<Vec<group::Group>>, Vec<usize>) = match groups {
-        None => (None, (0..rest.len()).collect()),
-        Some(groups) => {
-            let (many, one): (Vec<group::Group>, Vec<group::Group>) =
-                groups.into_iter().partition(|g| g.polygons.len() > 1);
-            (Some(many), one.iter().map(|g| g.polygons[0]).collect())
-        }
+    let singles: Vec<usize> = match groups {
+        None => (0..rest.len()).collect(),
+        Some(_) => Vec::new(),
     };
     // Indices into `rest` of the polygons laid out one per chart.
     let rest_singles: Vec<usize> = singles.iter().map(|&k| rest[k]).collect();
@@ -864,10 +888,15 @@ fn packed_layout(
             continue;
         }
         let sizes: Vec<(u32, u32)> = items.iter().map(|r| (r.width, r.height)).collect();
-        let pages = match pack::pack_skyline(&sizes, max) {
+        let masks: Vec<mask::Mask> = items
+            .par_iter()
+            .map(|r| mask::mask(r.width, r.height, &r.charts))
+            .collect();
+        let all: Vec<&mask::Mask> = masks.iter().collect();
+        let pages = match pack::pack_masks(&all, max) {
             Some(packing) => Ok(vec![(packing, (0..items.len()).collect())]),
             None if options.max_atlases > 1 => {
-                atlases(&items, polygons, max, options.max_atlases as usize)
+                atlases(&items, &masks, polygons, max, options.max_atlases as usize)
             }
             None => Err(coarser(&sizes, max)),
         };
@@ -883,21 +912,34 @@ fn packed_layout(
                 };
                 polygons.len()
             ];
+            let mut item_of = vec![u32::MAX; polygons.len()];
+            let mut owners = Vec::with_capacity(pages.len());
             for (page, (packing, members)) in pages.iter().enumerate() {
+                let columns = packing.width as usize / 2;
+                let mut owner = vec![u32::MAX; columns * (packing.height as usize / 2)];
                 for (&i, &(x, y)) in members.iter().zip(&packing.positions) {
                     let item = &items[i];
+                    let m = &masks[i];
+                    for (c, &(a, b)) in m.columns.iter().enumerate() {
+                        for r in a..b {
+                            let (bx, by) = (x as usize / 2 + c, y as usize / 2 + r as usize);
+                            owner[by * columns + bx] = i as u32;
+                        }
+                    }
                     let offset = DVec2::new(f64::from(x), f64::from(y));
                     for (p, uv) in &item.charts {
                         charts[*p] = uv.iter().map(|q| *q + offset).collect();
                         atlas[*p] = page as u32;
+                        item_of[*p] = i as u32;
                         regions[*p] = Rect {
                             x,
                             y,
-                            width: item.width,
-                            height: item.height,
+                            width: 2 * m.width,
+                            height: 2 * m.height,
                         };
                     }
                 }
+                owners.push(owner);
             }
             let warnings = own
                 .iter()
@@ -921,6 +963,7 @@ fn packed_layout(
                 regions,
                 chart_count,
                 warnings,
+                owners: Some((owners, item_of)),
             });
         }
         texel *= pages.err().unwrap_or(1.05);
@@ -942,6 +985,7 @@ fn packed_layout(
 /// primitive that did not fit, or of the whole area over `most` atlases).
 fn atlases(
     items: &[Item],
+    masks: &[mask::Mask],
     polygons: &[Polygon],
     max: u32,
     most: usize,
@@ -1000,7 +1044,8 @@ fn atlases(
             .iter()
             .map(|&i| (items[i].width, items[i].height))
             .collect();
-        if let Some(packing) = pack::pack_skyline(&sizes, max) {
+        let these: Vec<&mask::Mask> = members.iter().map(|&i| &masks[i]).collect();
+        if let Some(packing) = pack::pack_masks(&these, max) {
             done.push((packing, members));
             continue;
         }

@@ -2,6 +2,7 @@
 //! blocks (so every region starts on an even texel), trying several atlas widths and keeping
 //! the smallest atlas.
 
+use crate::mask::Mask;
 use etagere::{size2, AllocatorOptions, AtlasAllocator};
 
 /// Where each region goes and the atlas size, in texels.
@@ -142,93 +143,155 @@ mod tests {
     }
 }
 
-/// Packs `sizes` (even, in texels) with a bottom-left skyline, in 2×2 texel blocks: tallest
-/// first, each rectangle where its top ends lowest (then leftmost), trying several atlas
-/// widths and keeping the smallest atlas. Unlike a shelf allocator, small rectangles stack
-/// beside a tall one instead of leaving its shelf empty: the packer for grouped charts,
-/// whose sizes range from a whole terrain to a table leg. O(n × skyline segments).
-pub(crate) fn pack_skyline(sizes: &[(u32, u32)], max: u32) -> Option<Packing> {
-    let widths = (0..=16).map(|step| 1.0 + 0.05 * f64::from(step));
-    smallest(sizes, max / 2, widths, skyline_width)
+/// Packs `masks` (each a region's column spans, in 2×2 blocks) with a profile skyline:
+/// largest first, each where it rests lowest on the columns below it — a column's span
+/// rests on the highest block packed in that column so far, so a ragged chart's short
+/// columns take the space beside another's tall ones — then leftmost; trying several atlas
+/// widths and keeping the smallest atlas. Positions and sizes in texels; `None` when no
+/// width keeps both sides within `max` texels. O(masks × atlas width × mask width) a width.
+pub(crate) fn pack_masks(masks: &[&Mask], max: u32) -> Option<Packing> {
+    let max_blocks = (max / 2).min(MAX_BLOCKS);
+    let widest = masks.iter().map(|m| m.width).max()?;
+    let tallest = masks.iter().map(|m| m.height).max()?;
+    if widest > max_blocks || tallest > max_blocks {
+        return None;
+    }
+    let area: u64 = masks.iter().map(|m| m.blocks()).sum();
+    let mut order: Vec<usize> = (0..masks.len()).collect();
+    order.sort_by_key(|&k| {
+        let m = masks[k];
+        (std::cmp::Reverse(m.height), std::cmp::Reverse(m.width), k)
+    });
+    let side = (area as f64).sqrt();
+    let mut widths: Vec<u32> = (0..=12)
+        .map(|step| {
+            ((side * (1.0 + 0.05 * f64::from(step))).ceil() as u32).clamp(widest, max_blocks)
+        })
+        .collect();
+    widths.dedup();
+    // The widths in parallel; the smallest (then squarest, then first) atlas kept.
+    use rayon::prelude::*;
+    let passes: Vec<Option<Packing>> = widths
+        .par_iter()
+        .map(|&width| {
+            profile_width(masks, &order, width, max_blocks).map(|(used, p)| Packing {
+                width: 2 * width,
+                height: 2 * used,
+                positions: p.iter().map(|&(x, y)| (2 * x, 2 * y)).collect(),
+            })
+        })
+        .collect();
+    passes.into_iter().flatten().min_by_key(|p| {
+        (
+            u64::from(p.width) * u64::from(p.height),
+            p.width.max(p.height),
+        )
+    })
 }
 
-/// One skyline pass at `width` blocks: the height used and the positions (blocks).
-fn skyline_width(
-    blocks: &[(u32, u32)],
+/// One profile-skyline pass at `width` blocks: the height used and positions (blocks).
+fn profile_width(
+    masks: &[&Mask],
     order: &[usize],
     width: u32,
     max_height: u32,
 ) -> Option<(u32, Vec<(u32, u32)>)> {
-    // Segments (x, top) in x order; segment k runs to the next one's x (the last to width).
-    let mut sky: Vec<(u32, u32)> = vec![(0, 0)];
-    let mut positions = vec![(0, 0); blocks.len()];
+    // Per atlas column: one past its highest used block.
+    let mut sky = vec![0u32; width as usize];
+    let mut positions = vec![(0, 0); masks.len()];
     let mut used = 0;
     for &k in order {
-        let (w, h) = blocks[k];
-        let mut choice: Option<(u32, u32, usize)> = None; // (top, x, first segment)
-        for i in 0..sky.len() {
-            let x = sky[i].0;
-            if x + w > width {
-                break;
-            }
-            let mut y = 0;
-            for seg in &sky[i..] {
-                if seg.0 >= x + w {
-                    break;
+        let m = masks[k];
+        // (top, waste, x, y): lowest top, then least space left under it, then leftmost.
+        let mut choice: Option<(u32, u64, u32, u32)> = None;
+        for x in 0..=(width - m.width) {
+            let mut y = 0u32;
+            for (c, &(a, b)) in m.columns.iter().enumerate() {
+                if b > a {
+                    y = y.max(sky[x as usize + c].saturating_sub(a));
                 }
-                y = y.max(seg.1);
             }
-            let top = y + h;
-            if top <= max_height && choice.is_none_or(|(t, cx, _)| (top, x) < (t, cx)) {
-                choice = Some((top, x, i));
+            let top = y + m.height;
+            if top > max_height {
+                continue;
+            }
+            if choice.is_some_and(|(t, ..)| top > t) {
+                continue;
+            }
+            let waste: u64 = m
+                .columns
+                .iter()
+                .enumerate()
+                .filter(|(_, &(a, b))| b > a)
+                .map(|(c, &(a, _))| u64::from(y + a - sky[x as usize + c].min(y + a)))
+                .sum();
+            if choice.is_none_or(|(t, w, ..)| (top, waste) < (t, w)) {
+                choice = Some((top, waste, x, y));
             }
         }
-        let (top, x, i) = choice?;
-        positions[k] = (x, top - h);
-        used = used.max(top);
-        // The height at x + w before the change, then replace the covered segments.
-        let end = x + w;
-        let mut j = i;
-        let mut after = sky[i].1;
-        while j < sky.len() && sky[j].0 < end {
-            after = sky[j].1;
-            j += 1;
+        let (_, _, x, y) = choice?;
+        for (c, &(a, b)) in m.columns.iter().enumerate() {
+            if b > a {
+                let s = &mut sky[x as usize + c];
+                *s = (*s).max(y + b);
+                used = used.max(y + b);
+            }
         }
-        let mut replacement = vec![(x, top)];
-        if end < width && sky.get(j).is_none_or(|s| s.0 > end) {
-            replacement.push((end, after));
-        }
-        sky.splice(i..j, replacement);
-        // Merge neighbours of equal height.
-        sky.dedup_by(|b, a| a.1 == b.1);
+        positions[k] = (x, y);
     }
     Some((used, positions))
 }
 
 #[cfg(test)]
-mod skyline_tests {
+mod mask_tests {
     use super::*;
+    use glam::DVec2;
 
+    /// Right triangles of many sizes (each a region with its padding) and one large one:
+    /// masks never share a block, stay inside the atlas, and a triangle's empty half takes
+    /// other regions, so the blocks used exceed what the regions' rectangles would allow.
     #[test]
-    fn skyline_regions_do_not_overlap_and_stack_beside_a_tall_one() {
-        let mut sizes: Vec<(u32, u32)> = vec![(400, 400)];
-        sizes.extend((0..300).map(|k| (2 * (3 + k * 7 % 20), 2 * (2 + k * 13 % 15))));
-        let p = pack_skyline(&sizes, 4096).expect("fits");
-        for (a, &(xa, ya)) in p.positions.iter().enumerate() {
-            let (wa, ha) = sizes[a];
-            assert!(xa + wa <= p.width && ya + ha <= p.height);
-            for (b, &(xb, yb)) in p.positions.iter().enumerate().skip(a + 1) {
-                let (wb, hb) = sizes[b];
-                let apart = xa + wa <= xb || xb + wb <= xa || ya + ha <= yb || yb + hb <= ya;
-                assert!(apart, "{a} and {b} overlap");
+    fn masks_never_share_a_block_and_fill_beside_ragged_regions() {
+        let p = f64::from(crate::PADDING);
+        let triangle = |w: f64, h: f64| {
+            let width = 2 * ((w + 2.0 * p) / 2.0).ceil() as u32;
+            let height = 2 * ((h + 2.0 * p) / 2.0).ceil() as u32;
+            let uv = vec![DVec2::new(p, p), DVec2::new(p + w, p), DVec2::new(p, p + h)];
+            crate::mask::mask(width, height, &[(0, uv)])
+        };
+        let mut masks = vec![triangle(300.0, 300.0)];
+        masks.extend(
+            (0..400).map(|k| triangle(4.0 + f64::from(k * 7 % 40), 3.0 + f64::from(k * 13 % 30))),
+        );
+        let refs: Vec<&Mask> = masks.iter().collect();
+        let packing = pack_masks(&refs, 4096).expect("fits");
+        let (w, h) = (packing.width as usize / 2, packing.height as usize / 2);
+        let mut used = vec![false; w * h];
+        for (m, &(x, y)) in masks.iter().zip(&packing.positions) {
+            assert_eq!((x % 2, y % 2), (0, 0));
+            for (c, &(a, b)) in m.columns.iter().enumerate() {
+                for r in a..b {
+                    let (bx, by) = (x as usize / 2 + c, y as usize / 2 + r as usize);
+                    assert!(bx < w && by < h, "outside the atlas");
+                    assert!(!used[by * w + bx], "two masks share block ({bx}, {by})");
+                    used[by * w + bx] = true;
+                }
             }
         }
-        let area: u64 = sizes
+        let blocks = used.iter().filter(|&&u| u).count() as f64;
+        let rectangles: f64 = masks
             .iter()
-            .map(|&(w, h)| u64::from(w) * u64::from(h))
+            .map(|m| f64::from(m.width) * f64::from(m.height))
             .sum();
-        let used = f64::from(p.width) * f64::from(p.height);
-        assert!(area as f64 / used > 0.8, "{}", area as f64 / used);
-        assert!(pack_skyline(&sizes, 256).is_none());
+        // The triangles' masks take about half their rectangles; packed, they fill the
+        // atlas more than the rectangles alone could (their areas sum past the atlas).
+        assert!(blocks / (w * h) as f64 > 0.7, "{}", blocks / (w * h) as f64);
+        println!("{} blocks of {}, rectangles {rectangles}", blocks, w * h);
+        assert!(
+            ((w * h) as f64) < 0.9 * rectangles,
+            "{} {rectangles}",
+            w * h
+        );
+        assert!(pack_masks(&refs, 256).is_none());
     }
 }

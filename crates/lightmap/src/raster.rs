@@ -21,11 +21,16 @@ pub(crate) struct RegionTexels {
 /// Whether the closed square of half-side 1 around `c` meets the convex polygon `uv`: the
 /// texel at `c` is read by bilinear filtering for some point of the polygon.
 pub(crate) fn in_footprint(c: DVec2, uv: &[DVec2]) -> bool {
+    meets_square(c, 1.0, uv)
+}
+
+/// Whether the closed square of half-side `half` around `c` meets the convex polygon `uv`.
+pub(crate) fn meets_square(c: DVec2, half: f64, uv: &[DVec2]) -> bool {
     let (lo, hi) = uv.iter().fold(
         (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
         |(lo, hi), p| (lo.min(*p), hi.max(*p)),
     );
-    if lo.x > c.x + 1.0 || hi.x < c.x - 1.0 || lo.y > c.y + 1.0 || hi.y < c.y - 1.0 {
+    if lo.x > c.x + half || hi.x < c.x - half || lo.y > c.y + half || hi.y < c.y - half {
         return false;
     }
     // Separating axes: the polygon's edge normals.
@@ -39,7 +44,7 @@ pub(crate) fn in_footprint(c: DVec2, uv: &[DVec2]) -> bool {
                 (a.min(d), b.max(d))
             });
         let centre = c.dot(normal);
-        let reach = normal.x.abs() + normal.y.abs();
+        let reach = half * (normal.x.abs() + normal.y.abs());
         if centre - reach > max + 1e-9 * reach || centre + reach < min - 1e-9 * reach {
             return false;
         }
@@ -247,9 +252,14 @@ pub(crate) fn atlas_texels(
     charts: &[Vec<DVec2>],
     fields: &[Field],
     source: Source,
+    ownership: Option<(&[u32], &[u32])>,
 ) -> RegionTexels {
     use rayon::prelude::*;
     let (n, rows) = (width as usize, height as usize);
+    // The region owning texel k's block, and polygon p's region (both 0 without ownership).
+    let owner =
+        |k: usize| ownership.map_or(0, |(blocks, _)| blocks[(k / n / 2) * (n / 2) + (k % n) / 2]);
+    let region = |p: u32| ownership.map_or(0, |(_, item_of)| item_of[p as usize]);
     let mut claim: Vec<(f64, u32)> = vec![(f64::INFINITY, u32::MAX); n * rows];
     for (p, uv) in charts.iter().enumerate() {
         if uv.is_empty() {
@@ -267,7 +277,7 @@ pub(crate) fn atlas_texels(
         for y in range(lo.y, hi.y, rows) {
             for x in range(lo.x, hi.x, n) {
                 let c = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
-                if !in_footprint(c, uv) {
+                if !in_footprint(c, uv) || owner(y * n + x) != region(p as u32) {
                     continue;
                 }
                 let d = crate::authored::polygon_distance(c, uv);
@@ -312,6 +322,7 @@ pub(crate) fn atlas_texels(
                     return source[k];
                 }
                 let (x, y) = ((k % n) as i64, (k / n) as i64);
+                let mine = owner(k);
                 let mut best: Option<(i64, u32)> = None;
                 for dy in -1..=1 {
                     for dx in -1..=1 {
@@ -320,7 +331,7 @@ pub(crate) fn atlas_texels(
                             continue;
                         }
                         let s = source[sy as usize * n + sx as usize];
-                        if s == u32::MAX {
+                        if s == u32::MAX || region(claim[s as usize].1) != mine {
                             continue;
                         }
                         let (fx, fy) = ((s as usize % n) as i64, (s as usize / n) as i64);

@@ -28,9 +28,10 @@ pub const POINTS_PER_EDGE: usize = 8;
 
 /// Radius (texels) of the footprint whose field range bounds a point's jump: a bilinear sample
 /// reads texel centres within √2 texels of it, each reconstructed at its chart's point nearest
-/// its centre (≤ √2/2 further), so within 1.5√2 ≈ 2.12 texels in the chart; a grouped chart's
-/// polygons lie within 45° of its plane ([`crate::CHART_CONE_DEGREES`] twice), which stretches
-/// chart distances on the surface by up to √2: 3 texels.
+/// its centre (≤ √2/2 further), so within 1.5√2 ≈ 2.12 texels in the chart; grouped charts are
+/// unfolded, each polygon in its own shape, so a chart distance is a path on the surface of the
+/// same length (and no part of a chart lies nearer another in the chart than on the surface,
+/// `group`): 3 texels leave room for the snapping of a doubly curved chart's vertices.
 pub const FOOTPRINT: f64 = 3.0;
 
 /// Relative slack of the bound: the texels are stored as `f32`.
