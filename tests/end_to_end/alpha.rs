@@ -17,10 +17,10 @@ use serde_json::{json, Value};
 
 const INTENSITY: f64 = 100.0;
 const LIGHT: DVec3 = DVec3::new(0.0, 4.0, 0.0);
-const CELLS: usize = 16;
+pub(crate) const CELLS: usize = 16;
 
 /// Whether checker cell (column i, row j) of the grate's texture is open (alpha 0).
-fn open(i: usize, j: usize) -> bool {
+pub(crate) fn open(i: usize, j: usize) -> bool {
     (i + j).is_multiple_of(2)
 }
 
@@ -34,7 +34,7 @@ fn checker_png() -> String {
 
 /// The floor (y = 0, [−2, 2]², facing up) and the grate (y = 2, [−1, 1]², facing down,
 /// TEXCOORD_0 u = (x + 1)/2, v = (z + 1)/2), two triangles each.
-fn scene(alpha_mode: &str, sun: bool) -> Value {
+pub(crate) fn scene(alpha_mode: &str, sun: bool) -> Value {
     let quad = |y: f32, s: f32, up: bool| {
         let mut c = [[-s, y, -s], [s, y, -s], [s, y, s], [-s, y, s]];
         if up {

@@ -417,3 +417,64 @@ fn baked_textures_are_the_same_bytes_for_any_thread_count() {
         &["gltf", "bin", "baked.png"],
     );
 }
+
+/// An alpha cut-out keeps its cut-out in the baked-texture bake: the grate of `alpha.rs` (a
+/// 16 × 16 alpha checkerboard, `MASK`, cutoff 0.5) gets an unlit `MASK` material at the
+/// same cutoff and an RGBA atlas whose alpha, read through the grate's own `TEXCOORD_1` at
+/// the centre of every checker cell, is 0 where the cell is open and 255 where it is not;
+/// the floor's material stays `OPAQUE` and its texels' alpha 255.
+#[test]
+fn an_alpha_cut_out_keeps_its_cut_out() {
+    use crate::alpha::{open, scene, CELLS};
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let input = dir.path().join("grate.gltf");
+    common::write_json(&input, &scene("MASK", false));
+    let (_, out) = bake_baked(&input, dir.path(), &[]);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).expect("read the glTF")).expect("JSON");
+    let modes: Vec<(String, Option<f64>)> = json["materials"]
+        .as_array()
+        .expect("materials")
+        .iter()
+        .map(|m| {
+            (
+                m["alphaMode"].as_str().unwrap_or("OPAQUE").to_string(),
+                m["alphaCutoff"].as_f64(),
+            )
+        })
+        .collect();
+    assert!(
+        modes.contains(&("MASK".to_string(), Some(0.5))),
+        "{modes:?}"
+    );
+    assert!(modes.contains(&("OPAQUE".to_string(), None)), "{modes:?}");
+    let written = read_written(&out);
+    let alpha = |image: &gltf::image::Data, uv: DVec2| {
+        assert_eq!(image.format, gltf::image::Format::R8G8B8A8);
+        let x = ((uv.x * f64::from(image.width)) as usize).min(image.width as usize - 1);
+        let y = ((uv.y * f64::from(image.height)) as usize).min(image.height as usize - 1);
+        image.pixels[4 * (y * image.width as usize + x) + 3]
+    };
+    let (mut open_cells, mut closed_cells) = (0, 0);
+    for j in 0..CELLS {
+        for i in 0..CELLS {
+            // TEXCOORD_0 u = (x + 1)/2, v = (z + 1)/2 on the grate (y = 2, facing down).
+            let u = (i as f64 + 0.5) / CELLS as f64;
+            let v = (j as f64 + 0.5) / CELLS as f64;
+            let point = DVec3::new(2.0 * u - 1.0, 2.0, 2.0 * v - 1.0);
+            let (uv, image) = lookup(&written, point, DVec3::NEG_Y).expect("a grate point");
+            let a = alpha(&written.images[image], uv);
+            if open(i, j) {
+                assert_eq!(a, 0, "cell ({i}, {j})");
+                open_cells += 1;
+            } else {
+                assert_eq!(a, 255, "cell ({i}, {j})");
+                closed_cells += 1;
+            }
+        }
+    }
+    assert_eq!((open_cells, closed_cells), (128, 128));
+    let (uv, image) = lookup(&written, DVec3::new(1.5, 0.0, 1.5), DVec3::Y).expect("the floor");
+    assert_eq!(alpha(&written.images[image], uv), 255);
+    bake_testkit::validate_clean(&[out]);
+}

@@ -2,7 +2,8 @@
 //! layout, but every material is `KHR_materials_unlit` with a white base colour whose
 //! `baseColorTexture` (on `TEXCOORD_1`) is an atlas of what the surface shows, `ρ × H + e`
 //! per texel with the base-colour texture multiplied in at texel resolution, times the
-//! exposure, clamped to [0, 1], 8-bit sRGB. Any glTF viewer shows it as baked, with no
+//! exposure, clamped to [0, 1], 8-bit sRGB (with an alpha channel holding the cut-out of any
+//! `MASK` material, [`surface_alpha`]). Any glTF viewer shows it as baked, with no
 //! set-up (Blender, Godot and Unity import the unlit extension; `MOZ_lightmap` they drop).
 //!
 //! One atlas set for the scene (the lightmap's): a material per input material and atlas,
@@ -17,7 +18,7 @@ use glam::DVec3;
 use gltf::json;
 use lightmap::Lightmap;
 use rayon::prelude::*;
-use scene::{Scene, TextureRef};
+use scene::{AlphaMask, Scene, TextureRef};
 use std::path::{Path, PathBuf};
 
 const UNLIT_EXTENSION: &str = "KHR_materials_unlit";
@@ -91,9 +92,14 @@ pub fn stage_baked_texture_gltf(
         let atlas = lightmap.atlas(k);
         let texels = surface_texels(bake, k)?;
         let exposure = bake.exposure;
-        let png = lightmap::encode_srgb_png(atlas.width, atlas.height, &texels, |v| {
-            f64::from(v) * exposure
-        })
+        let alpha = surface_alpha(bake, k);
+        let png = lightmap::encode_srgb_png_alpha(
+            atlas.width,
+            atlas.height,
+            &texels,
+            alpha.as_deref(),
+            |v| f64::from(v) * exposure,
+        )
         .map_err(|e| ExportError::Encode {
             what: "baked texture",
             message: e.to_string(),
@@ -114,7 +120,8 @@ pub fn stage_baked_texture_gltf(
             .materials
             .get(m)
             .ok_or_else(|| ExportError::InvalidData(format!("missing material {m}")))?;
-        let material = unlit_material(source.name.clone(), textures[atlas as usize]);
+        let mask = scene.alpha_masks.get(m).copied().flatten();
+        let material = unlit_material(source.name.clone(), textures[atlas as usize], mask);
         Ok((writer.root.push(material), UvNeeds::default()))
     })?;
     writer.use_extension(UNLIT_EXTENSION);
@@ -144,10 +151,21 @@ pub fn stage_baked_texture_gltf(
     stage_document(set, &paths.gltf, format, writer, staged)
 }
 
-/// An unlit material showing `texture` on `TEXCOORD_1` under a white factor.
-fn unlit_material(name: Option<String>, texture: json::Index<json::Texture>) -> json::Material {
+/// An unlit material showing `texture` on `TEXCOORD_1` under a white factor; with an alpha
+/// cut-out, `MASK` at its cutoff (the atlas's alpha holds the cut-out, [`surface_alpha`]).
+fn unlit_material(
+    name: Option<String>,
+    texture: json::Index<json::Texture>,
+    mask: Option<AlphaMask>,
+) -> json::Material {
     json::Material {
         name,
+        alpha_mode: json::validation::Checked::Valid(if mask.is_some() {
+            json::material::AlphaMode::Mask
+        } else {
+            json::material::AlphaMode::Opaque
+        }),
+        alpha_cutoff: mask.map(|m| json::material::AlphaCutoff(m.cutoff as f32)),
         pbr_metallic_roughness: json::material::PbrMetallicRoughness {
             base_color_factor: json::material::PbrBaseColorFactor([1.0, 1.0, 1.0, 1.0]),
             base_color_texture: Some(json::texture::Info {
@@ -203,6 +221,53 @@ pub fn surface_texels(bake: &BakedTextureBake, k: usize) -> Result<Vec<[f32; 3]>
         })
         .collect();
     values.into_iter().collect()
+}
+
+/// Atlas `k`'s alpha where a material of the scene is cut out (`alphaMode` `MASK`): per
+/// texel, `baseColorFactor`'s alpha × the base-colour texture's alpha at the surface point the
+/// texel shows (the input's cut-out, resampled at the lightmap's texels; 1 elsewhere);
+/// `None` when no material is cut out. The same values for any thread count.
+pub fn surface_alpha(bake: &BakedTextureBake, k: usize) -> Option<Vec<f32>> {
+    let scene = bake.scene;
+    if scene.alpha_masks.iter().all(Option::is_none) {
+        return None;
+    }
+    let lightmap = bake.lightmap;
+    let atlas = lightmap.atlas(k);
+    Some(
+        (0..atlas.texels.len())
+            .into_par_iter()
+            .map(|index| {
+                let Some((p, weights)) = lightmap.texel_point(k, index) else {
+                    return 1.0;
+                };
+                let Some(polygon) = scene.polygons.get(p) else {
+                    return 1.0;
+                };
+                let material = polygon.material;
+                let Some(mask) = scene.alpha_masks.get(material).copied().flatten() else {
+                    return 1.0;
+                };
+                let point = polygon
+                    .vertices
+                    .iter()
+                    .zip(weights)
+                    .fold(DVec3::ZERO, |sum, (&v, w)| sum + v * w);
+                let texture = scene.materials[material]
+                    .base_color_texture
+                    .as_ref()
+                    .and_then(|reference| {
+                        let uv = scene.uvs.get(p).and_then(Option::as_ref)?;
+                        let at = uv.at((reference.tex_coord as usize).min(1), point)?;
+                        let texture = scene.textures.get(reference.texture)?;
+                        let image = scene.images.get(texture.image)?;
+                        Some(texture::sample_alpha(texture, image, reference.apply(at)))
+                    })
+                    .unwrap_or(1.0);
+                (mask.factor * texture).clamp(0.0, 1.0) as f32
+            })
+            .collect(),
+    )
 }
 
 /// ρ and e of polygon `p`'s material at world point `point`: the factors times the textures

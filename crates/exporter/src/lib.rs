@@ -35,7 +35,7 @@ pub use journal::{recover_interrupted_commits, Recovered};
 pub use same_file::{check_distinct, SameFile};
 
 pub use baked_texture::{
-    stage_baked_texture_gltf, surface_texels, BakedTextureBake, BakedTexturePaths,
+    stage_baked_texture_gltf, surface_alpha, surface_texels, BakedTextureBake, BakedTexturePaths,
     BAKED_TEXTURE_EXTRAS_KEY,
 };
 pub use lightmap_gltf::{

@@ -138,19 +138,41 @@ pub fn encode_srgb_png(
     texels: &[[f32; 3]],
     to_unit: impl Fn(f32) -> f64,
 ) -> Result<Vec<u8>, LightmapError> {
+    encode_srgb_png_alpha(width, height, texels, None, to_unit)
+}
+
+/// [`encode_srgb_png`] with an alpha channel (linear, clamped to [0, 1], rounded to the
+/// nearest of 256 levels) when `alpha` is given: an 8-bit RGBA PNG.
+pub fn encode_srgb_png_alpha(
+    width: u32,
+    height: u32,
+    texels: &[[f32; 3]],
+    alpha: Option<&[f32]>,
+    to_unit: impl Fn(f32) -> f64,
+) -> Result<Vec<u8>, LightmapError> {
     use image::ImageEncoder;
-    let bytes: Vec<u8> = texels
-        .iter()
-        .flat_map(|t| {
-            t.map(|v| {
-                let encoded = linear_to_srgb(to_unit(v).clamp(0.0, 1.0));
-                (encoded * 255.0).round() as u8
-            })
-        })
-        .collect();
+    let level = |v: f64| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+    let colour = |t: &[f32; 3]| t.map(|v| level(linear_to_srgb(to_unit(v).clamp(0.0, 1.0))));
+    let (bytes, kind): (Vec<u8>, _) = match alpha {
+        None => (
+            texels.iter().flat_map(colour).collect(),
+            image::ExtendedColorType::Rgb8,
+        ),
+        Some(alpha) => (
+            texels
+                .iter()
+                .zip(alpha.iter().chain(std::iter::repeat(&1.0)))
+                .flat_map(|(t, a)| {
+                    let [r, g, b] = colour(t);
+                    [r, g, b, level(f64::from(*a))]
+                })
+                .collect(),
+            image::ExtendedColorType::Rgba8,
+        ),
+    };
     let mut png = Vec::new();
     image::codecs::png::PngEncoder::new(&mut png)
-        .write_image(&bytes, width, height, image::ExtendedColorType::Rgb8)
+        .write_image(&bytes, width, height, kind)
         .map_err(|e| LightmapError::Encode {
             what: "PNG",
             message: e.to_string(),

@@ -59,8 +59,9 @@ mod seams;
 pub use authored::{AuthoredUv, UvDecision, UvMode, MIN_PADDING, OWN_ATLAS, OWN_REGION};
 pub use chart::{PADDING, PAIR_GAP};
 pub use encode::{
-    encode_exr, encode_exr_atlas, encode_png, encode_png_atlas, encode_srgb_png, linear_to_srgb,
-    png_scale, srgb_to_linear, PngLightmap, EXR_COMMENT, PNG_HEADROOM, PNG_PERCENTILE,
+    encode_exr, encode_exr_atlas, encode_png, encode_png_atlas, encode_srgb_png,
+    encode_srgb_png_alpha, linear_to_srgb, png_scale, srgb_to_linear, PngLightmap, EXR_COMMENT,
+    PNG_HEADROOM, PNG_PERCENTILE,
 };
 pub use group::{CHART_CONE_DEGREES, CREASE_DEGREES, GROUPED_ABOVE};
 pub use raster::DILATION_RADIUS;
