@@ -1,8 +1,8 @@
 """Cycles renders of a bake, compared with the bake's numbers: run by tools/blender-cycles-check.
 
     blender -b --factory-startup --python-exit-code 1 --python tools/blender_cycles_check.py \
-        -- BAKED.gltf REPORT.json [--lightmap [--exr] | --baked-texture] [--png OUT.png]
-        [--width W]
+        -- BAKED.gltf REPORT.json [--lightmap [--exr] | --baked-texture [--expected E.json]]
+        [--png OUT.png] [--width W]
 
 Imports BAKED (a vertex bake written with --shading flat, or with --lightmap the lightmap bake
 beside it, BAKED being the .lightmap.gltf) with Blender's stock importer and replaces every
@@ -32,7 +32,10 @@ border, the pixel is compared with the bake's own numbers from REPORT:
   expected = clamp((ρ × H + e) × exposure, 0, 1)                         (--baked-texture)
 
 (--baked-texture compares with the element's ρ, the mean of a base-colour texture over it:
-meant for scenes without base-colour textures, whose ρ is the same at every point.)
+meant for scenes without base-colour textures, whose ρ is the same at every point. For a
+textured scene, --expected E.json gives the displayed linear value at chosen elements,
+{"ELEMENT INDEX": [r, g, b], ...}, computed by the caller from the input's texture at the
+element's centre: only those elements are compared, against those values.)
 
 with H and b the element's `h` and `b`. Prints `CYCLES_CHECK {...}` (JSON: elements compared,
 the largest and mean difference in 8-bit levels) and exits 1 when the largest exceeds
@@ -69,7 +72,7 @@ def linear_to_srgb8(v):
 def parse_args():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     args = {"lightmap": False, "exr": False, "baked_texture": False, "png": None,
-            "width": 1200, "tolerance": 2.0}
+            "width": 1200, "tolerance": 2.0, "expected": None}
     positional = []
     i = 0
     while i < len(argv):
@@ -80,9 +83,9 @@ def parse_args():
             args["exr"] = True
         elif a == "--baked-texture":
             args["baked_texture"] = True
-        elif a in ("--png", "--width", "--tolerance"):
+        elif a in ("--png", "--width", "--tolerance", "--expected"):
             i += 1
-            args[a[2:]] = argv[i] if a == "--png" else float(argv[i])
+            args[a[2:]] = argv[i] if a in ("--png", "--expected") else float(argv[i])
         else:
             positional.append(a)
         i += 1
@@ -184,6 +187,10 @@ def main():
     with open(args["gltf"]) as f:
         doc = json.load(f)
     exposure = report["options"]["exposure"]
+    given = None
+    if args["expected"]:
+        with open(args["expected"]) as f:
+            given = {int(k): v for k, v in json.load(f).items()}
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.import_scene.gltf(filepath=os.path.abspath(args["gltf"]))
 
@@ -273,7 +280,9 @@ def main():
     from bpy_extras.object_utils import world_to_camera_view
     depsgraph = bpy.context.evaluated_depsgraph_get()
     diffs = []
-    for e in report["elements"]:
+    for element, e in enumerate(report["elements"]):
+        if given is not None and element not in given:
+            continue
         n = e["normal"]
         if n[1] < 0.99:  # glTF +y: Blender +z, facing the camera
             continue
@@ -298,7 +307,9 @@ def main():
                 continue
         else:
             tex = [1.0, 1.0, 1.0]
-        if args["baked_texture"]:
+        if given is not None:
+            expected = [min(max(given[element][k], 0.0), 1.0) for k in range(3)]
+        elif args["baked_texture"]:
             expected = [min(max((e["rho"][k] * e["h"][k] + e["e"][k]) * exposure, 0.0), 1.0)
                         for k in range(3)]
         elif args["lightmap"] or textured:

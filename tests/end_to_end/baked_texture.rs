@@ -253,32 +253,35 @@ fn textured_floor(dir: &Path, nearest: bool) -> PathBuf {
     input
 }
 
+/// What the textured floor's surface shows at element `el`'s centre: ρ × H + e with ρ the
+/// NEAREST texture's texel there (the floor's TEXCOORD_0 is ((x + 5) / 10, (z + 5) / 10))
+/// times the factor; elsewhere the element's own ρ × H + e.
+fn floor_surface(el: &ElementEntry) -> [f64; 3] {
+    let h = el.h.expect("H");
+    let on_floor = el.normal[1] > 0.5 && el.centroid[1].abs() < 1e-9;
+    if !on_floor {
+        return rho_h_plus_e(el);
+    }
+    let u = (el.centroid[0] + 5.0) / 10.0;
+    let v = (el.centroid[2] + 5.0) / 10.0;
+    let (x, y) = (
+        ((u * 2.0).floor() as usize).min(1),
+        ((v * 2.0).floor() as usize).min(1),
+    );
+    let texel = FLOOR_COLOURS[y * 2 + x];
+    std::array::from_fn(|c| {
+        FLOOR_FACTOR[c] * srgb_to_linear(f64::from(texel[c]) / 255.0) * h[c] + el.e[c]
+    })
+}
+
 #[test]
 fn a_textured_floor_shows_the_texture_texel_times_h() {
     let dir = tempfile::tempdir().expect("a temporary directory");
     let input = textured_floor(dir.path(), true);
-    let (colours, factor) = (FLOOR_COLOURS, FLOOR_FACTOR);
+    let factor = FLOOR_FACTOR;
     let (report, out) = bake_baked(&input, dir.path(), &["--exposure", "auto"]);
     let written = read_written(&out);
-    // The floor's TEXCOORD_0 is ((x + 5) / 10, (z + 5) / 10).
-    let surface = |el: &ElementEntry| -> [f64; 3] {
-        let h = el.h.expect("H");
-        let on_floor = el.normal[1] > 0.5 && el.centroid[1].abs() < 1e-9;
-        if !on_floor {
-            return rho_h_plus_e(el);
-        }
-        let u = (el.centroid[0] + 5.0) / 10.0;
-        let v = (el.centroid[2] + 5.0) / 10.0;
-        let (x, y) = (
-            ((u * 2.0).floor() as usize).min(1),
-            ((v * 2.0).floor() as usize).min(1),
-        );
-        let texel = colours[y * 2 + x];
-        std::array::from_fn(|c| {
-            factor[c] * srgb_to_linear(f64::from(texel[c]) / 255.0) * h[c] + el.e[c]
-        })
-    };
-    let (compared, within, worst) = compare(&report, &written, surface);
+    let (compared, within, worst) = compare(&report, &written, floor_surface);
     eprintln!(
         "textured floor: {within} of {compared} element centres within 2/255 (of {}), \
          largest difference {worst:.2} levels, exposure {}",
@@ -377,6 +380,61 @@ fn blender_shows_the_baked_texture_as_the_report_says() {
         &["--baked-texture"],
         "CYCLES_CHECK ",
         50,
+    );
+}
+
+/// Blender's own import of the baked-texture bake of the textured floor (a 2 × 2 NEAREST
+/// texture under a factor), rendered by Cycles from above: at the centre of every floor
+/// element at least 5 cm from the texture cells' borders, the pixel shows factor × the
+/// texture's texel × H (+ e) × exposure within 2/255 — the values computed here from the
+/// input's texture (`tools/blender-cycles-check --baked-texture --expected`). Skipped when
+/// Blender is missing, unless `BAKE_REQUIRE_BLENDER=1`.
+#[test]
+fn blender_shows_a_textured_baked_texture_as_the_texture_says() {
+    if !bake_testkit::blender_or_skip() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let input = textured_floor(dir.path(), true);
+    let (report, out) = bake_baked(&input, dir.path(), &["--exposure", "auto"]);
+    let exposure = read_written(&out).exposure;
+    let mut expected = serde_json::Map::new();
+    for (k, el) in report.elements.iter().enumerate() {
+        let on_floor = el.normal[1] > 0.5 && el.centroid[1].abs() < 1e-9;
+        let near_border = el.centroid[0].abs() < 0.05 || el.centroid[2].abs() < 0.05;
+        if on_floor && !near_border {
+            let value = floor_surface(el).map(|v| v * exposure);
+            expected.insert(k.to_string(), serde_json::json!(value));
+        }
+    }
+    assert!(expected.len() >= 50, "{} floor elements", expected.len());
+    let expected_path = dir.path().join("expected.json");
+    common::write_json(&expected_path, &serde_json::Value::Object(expected));
+    let report_path = dir.path().join("report.json");
+    let checked =
+        std::process::Command::new(bake_testkit::tools_dir().join("blender-cycles-check"))
+            .args([out.as_os_str(), report_path.as_os_str()])
+            .args([
+                "--baked-texture".as_ref(),
+                "--expected".as_ref(),
+                expected_path.as_os_str(),
+            ])
+            .output()
+            .expect("run tools/blender-cycles-check");
+    let stdout = String::from_utf8_lossy(&checked.stdout);
+    let result: serde_json::Value = stdout
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("CYCLES_CHECK "))
+        .and_then(|l| serde_json::from_str(l).ok())
+        .unwrap_or(serde_json::Value::Null);
+    println!("blender-cycles-check on the textured floor: {result}");
+
+    assert!(checked.status.success(), "{stdout}");
+    assert!(result["compared"].as_u64().unwrap_or(0) >= 50, "{result}");
+    assert!(
+        result["max_levels"].as_f64().unwrap_or(f64::MAX) <= 2.0,
+        "{result}"
     );
 }
 
