@@ -193,10 +193,13 @@ fn a_black_walled_courtyard_matches_the_view_factor_to_its_opening() {
     let per_element = report.options["sky_samples"].as_u64().expect("sky_samples");
     // Every element (floor and walls) has some polygon in front of it: all sampled.
     assert_eq!(sky.stats.elements_exact, 0);
-    assert_eq!(
-        sky.stats.rays_cast,
-        sky.stats.elements_sampled * per_element,
-        "a square number of rays per element"
+    // At most `--sky-samples` rays per element (probes included); rays aimed at an opening
+    // below an element's horizon are not cast.
+    let most = sky.stats.elements_sampled * per_element;
+    assert!(
+        sky.stats.rays_cast <= most && sky.stats.rays_cast > most * 9 / 10,
+        "{} rays for {most}",
+        sky.stats.rays_cast
     );
     assert_eq!(sky.stats.elements_sampled as usize, report.elements.len());
     assert!(
@@ -399,4 +402,234 @@ fn ev100_exposure_maps_1_2_times_2_to_the_n_to_one() {
     let run = common::bake(["--exposure", "ev100:many", "a.gltf", "b.gltf"]);
     assert_eq!(run.code, Some(2));
     assert!(run.stderr.contains("ev100:N"), "{}", run.stderr);
+}
+
+// A room with one window (issue 35's daylight-factor target): 4 × 4 m floor (ρ = 0.5), 3 m
+// high, black walls and ceiling facing in, and a 2 × 1.5 m opening in the wall z = −2 (x in
+// [−1, 1], y in [1, 2.5]). Only the window lets light in and everything else is black, so a
+// floor point's illuminance is exactly the sky seen through the window: its daylight factor
+// is that over the sky's unobstructed horizontal illuminance.
+
+const ROOM_HALF: f64 = 2.0;
+const ROOM_HEIGHT: f64 = 3.0;
+const WINDOW: [f64; 4] = [-1.0, 1.0, 1.0, 2.5];
+
+fn window_room() -> Value {
+    let (h, y) = (ROOM_HALF, ROOM_HEIGHT);
+    let [x0, x1, y0, y1] = WINDOW;
+    let inward_z = [0.0, 0.0, 1.0];
+    let mut walls = Vec::new();
+    // The window wall, four quads around the opening.
+    walls.extend(quad(
+        [-h, 0.0, -h],
+        [h, 0.0, -h],
+        [h, y0, -h],
+        [-h, y0, -h],
+        inward_z,
+    ));
+    walls.extend(quad(
+        [-h, y1, -h],
+        [h, y1, -h],
+        [h, y, -h],
+        [-h, y, -h],
+        inward_z,
+    ));
+    walls.extend(quad(
+        [-h, y0, -h],
+        [x0, y0, -h],
+        [x0, y1, -h],
+        [-h, y1, -h],
+        inward_z,
+    ));
+    walls.extend(quad(
+        [x1, y0, -h],
+        [h, y0, -h],
+        [h, y1, -h],
+        [x1, y1, -h],
+        inward_z,
+    ));
+    walls.extend(quad(
+        [-h, 0.0, h],
+        [h, 0.0, h],
+        [h, y, h],
+        [-h, y, h],
+        [0.0, 0.0, -1.0],
+    ));
+    walls.extend(quad(
+        [-h, 0.0, -h],
+        [-h, 0.0, h],
+        [-h, y, h],
+        [-h, y, -h],
+        [1.0, 0.0, 0.0],
+    ));
+    walls.extend(quad(
+        [h, 0.0, -h],
+        [h, 0.0, h],
+        [h, y, h],
+        [h, y, -h],
+        [-1.0, 0.0, 0.0],
+    ));
+    walls.extend(quad(
+        [-h, y, -h],
+        [h, y, -h],
+        [h, y, h],
+        [-h, y, h],
+        [0.0, -1.0, 0.0],
+    ));
+    let floor = quad(
+        [-h, 0.0, -h],
+        [h, 0.0, -h],
+        [h, 0.0, h],
+        [-h, 0.0, h],
+        [0.0, 1.0, 0.0],
+    );
+    lit_scene(&[(floor, [RHO; 3]), (walls, [0.0; 3])], &[])
+}
+
+/// The overcast sky's illuminance (Lz = 1) at the floor point (x, 0, z) through the window:
+/// ∫ L(ω) cos θ dω written over the window's area, `L (y / r) ((z + 2) / r) / r² dA` (r the
+/// distance to the window point, y its height, z + 2 the point's distance from the window's
+/// plane; L = (1 + 2 y / r) / 3), by an n × n midpoint rule per metre of window. Independent
+/// of the bake: no rays, no hemisphere.
+fn through_window(x: f64, z: f64, n: usize) -> f64 {
+    let [x0, x1, y0, y1] = WINDOW;
+    let (nx, ny) = (
+        ((x1 - x0) * n as f64) as usize,
+        ((y1 - y0) * n as f64) as usize,
+    );
+    let (dx, dy) = ((x1 - x0) / nx as f64, (y1 - y0) / ny as f64);
+    let depth = z + ROOM_HALF;
+    let mut sum = 0.0;
+    for i in 0..nx {
+        let wx = x0 + (i as f64 + 0.5) * dx - x;
+        for j in 0..ny {
+            let wy = y0 + (j as f64 + 0.5) * dy;
+            let r2 = wx * wx + wy * wy + depth * depth;
+            let r = r2.sqrt();
+            let radiance = (1.0 + 2.0 * wy / r) / 3.0;
+            sum += radiance * (wy / r) * (depth / r) / r2;
+        }
+    }
+    sum * dx * dy
+}
+
+/// The daylight factor (illuminance over the overcast sky's E_h = 7π/9 for Lz = 1) averaged
+/// over a square floor element: a 6 × 6 midpoint rule over the element.
+fn element_daylight_factor(centroid: [f64; 3], area: f64) -> f64 {
+    let side = area.sqrt();
+    let m = 6;
+    let mut sum = 0.0;
+    for i in 0..m {
+        for j in 0..m {
+            let x = centroid[0] + side * ((i as f64 + 0.5) / m as f64 - 0.5);
+            let z = centroid[2] + side * ((j as f64 + 0.5) / m as f64 - 0.5);
+            sum += through_window(x, z, 30);
+        }
+    }
+    sum / (m * m) as f64 / (7.0 * PI / 9.0)
+}
+
+/// The window room baked under `--sky overcast:1` with 0.5 m elements (`samples`: the
+/// `--sky-samples` option, or the quality's default) → per floor element (baked daylight
+/// factor, the reference's).
+fn window_room_daylight(dir: &std::path::Path, samples: Option<&str>) -> Vec<(f64, f64)> {
+    let mut args = vec![
+        "--sky",
+        "overcast:1",
+        "--max-element-size",
+        "0.5",
+        "--refine",
+        "off",
+    ];
+    if let Some(s) = samples {
+        args.extend(["--sky-samples", s]);
+    }
+    let report = bake_json(dir, "window", &window_room(), &args);
+    let e_h = 7.0 * PI / 9.0;
+    report
+        .elements
+        .iter()
+        .filter(|e| is_floor(e))
+        .map(|e| {
+            // b = ρ E / π → DF = E / E_h = π b / (ρ E_h).
+            let baked = PI * e.b[0] / (RHO * e_h);
+            (baked, element_daylight_factor(e.centroid, e.area))
+        })
+        .collect()
+}
+
+/// Area-uniform RMS and worst relative error of (value, reference) pairs.
+fn relative_errors(pairs: &[(f64, f64)]) -> (f64, f64) {
+    let (mut sum_sq, mut worst) = (0.0, 0.0f64);
+    for (value, reference) in pairs {
+        let r = (value - reference) / reference;
+        sum_sq += r * r;
+        worst = worst.max(r.abs());
+    }
+    ((sum_sq / pairs.len() as f64).sqrt(), worst)
+}
+
+#[test]
+fn the_window_reference_converges_and_matches_a_known_value() {
+    // Refining the window's rule moves the value by far less than the test's tolerance.
+    let (coarse, fine) = (through_window(0.3, 0.7, 30), through_window(0.3, 0.7, 120));
+    assert!(
+        (coarse - fine).abs() < 1e-4 * fine,
+        "{coarse} against {fine}"
+    );
+    // A point on the window's axis under a uniform sky would see the rectangle's view
+    // factor; with the overcast weighting the value lies between 1/3 and 1 of π × it.
+    let df = through_window(0.0, 0.0, 60) / (7.0 * PI / 9.0);
+    assert!(df > 0.01 && df < 0.2, "daylight factor {df}");
+}
+
+/// The issue's target: daylight factors at every floor element within 5% of the reference,
+/// at the default `--sky-samples` (the normal quality's 1024).
+#[test]
+fn a_window_room_matches_the_daylight_factor_reference() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let floor = window_room_daylight(dir.path(), None);
+    assert_eq!(floor.len(), 64, "an 8 × 8 grid on the floor");
+    let (rms, worst) = relative_errors(&floor);
+    eprintln!("window room, default rays: RMS {rms:.2e}, worst {worst:.2e}");
+    for (baked, reference) in &floor {
+        assert!(
+            (baked - reference).abs() < 0.05 * reference,
+            "daylight factor {baked:.5} against {reference:.5}"
+        );
+    }
+}
+
+/// The errors docs/lights.md quotes, measured: daylight factors in the window room and the
+/// courtyard's floor against their references at 256, 1024 and 4096 rays, RMS and worst
+/// element, none more than 5% (of itself) above the documented value (the rays are seeded:
+/// a change of the sampling shows here).
+#[test]
+fn sky_sampling_errors_by_ray_count() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    // (rays, window RMS, window worst, courtyard RMS, courtyard worst) as documented.
+    let documented = [
+        ("256", 0.034, 0.095, 0.020, 0.059),
+        ("1024", 0.0148, 0.037, 0.0056, 0.022),
+        ("4096", 0.0089, 0.029, 0.0021, 0.0098),
+    ];
+    let mut failed = Vec::new();
+    for (samples, window_rms, window_worst, court_rms, court_worst) in documented {
+        let (rms, worst) = relative_errors(&window_room_daylight(dir.path(), Some(samples)));
+        eprintln!("window room, {samples} rays: RMS {rms:.4}, worst {worst:.4}");
+        let window = rms <= window_rms * 1.05 && worst <= window_worst * 1.05;
+        let report = bake_courtyard(dir.path(), "courtyard", false, "0.5", samples);
+        let floor: Vec<_> = report
+            .elements
+            .iter()
+            .filter(|e| is_floor(e))
+            .map(|e| (e.b[0], RHO * element_opening(e.centroid, e.area)))
+            .collect();
+        let (rms, worst) = relative_errors(&floor);
+        eprintln!("courtyard, {samples} rays: RMS {rms:.4}, worst {worst:.4}");
+        let court = rms <= court_rms * 1.05 && worst <= court_worst * 1.05;
+        failed.extend((!window).then_some(format!("window room at {samples}")));
+        failed.extend((!court).then_some(format!("courtyard at {samples}")));
+    }
+    assert!(failed.is_empty(), "worse than documented: {failed:?}");
 }
