@@ -626,7 +626,8 @@ fn sky_sampling_errors_by_ray_count() {
             .map(|e| (e.b[0], RHO * element_opening(e.centroid, e.area)))
             .collect();
         let (rms, worst) = relative_errors(&floor);
-        eprintln!("courtyard, {samples} rays: RMS {rms:.4}, worst {worst:.4}");
+        let seconds = report.timings.get("sky_light").copied().unwrap_or(f64::NAN);
+        eprintln!("courtyard, {samples} rays: RMS {rms:.4}, worst {worst:.4}, sky {seconds:.3} s");
         let court = rms <= court_rms * 1.05 && worst <= court_worst * 1.05;
         failed.extend((!window).then_some(format!("window room at {samples}")));
         failed.extend((!court).then_some(format!("courtyard at {samples}")));
