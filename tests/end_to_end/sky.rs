@@ -634,3 +634,27 @@ fn sky_sampling_errors_by_ray_count() {
     }
     assert!(failed.is_empty(), "worse than documented: {failed:?}");
 }
+
+/// The fewest rays still give a finite, non-negative sky on every element (one ray: no
+/// probes; 16: one probe, then aimed and cosine rays), and the floor's mean daylight factor
+/// at 16 rays is that of the reference within 15% (the mean of 64 elements' noise).
+#[test]
+fn few_sky_rays_still_give_the_floor_its_daylight() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    for samples in ["1", "16"] {
+        let floor = window_room_daylight(dir.path(), Some(samples));
+        assert_eq!(floor.len(), 64);
+        assert!(
+            floor.iter().all(|(b, _)| b.is_finite() && *b >= 0.0),
+            "{samples} rays: {floor:?}"
+        );
+        if samples == "16" {
+            let mean = |f: fn(&(f64, f64)) -> f64| floor.iter().map(f).sum::<f64>() / 64.0;
+            let (baked, reference) = (mean(|p| p.0), mean(|p| p.1));
+            assert!(
+                (baked - reference).abs() < 0.15 * reference,
+                "mean daylight factor {baked} against {reference}"
+            );
+        }
+    }
+}
