@@ -364,7 +364,7 @@ fn a_sky_that_is_not_one_is_refused_with_a_readable_line() {
     common::write_json(&input, &lit_scene(&[(floor(), [RHO; 3])], &[]));
     let out = dir.path().join("out.gltf");
     for (args, says) in [
-        (["--sky", "clear"], "uniform:L or overcast:Lz"),
+        (["--sky", "clear"], "uniform:L, overcast:Lz or map:FILE"),
         (["--sky", "uniform:-2"], "finite number ≥ 0"),
         (["--ground-reflectance", "1.5"], "reflectance in [0, 1]"),
     ] {
@@ -657,4 +657,169 @@ fn few_sky_rays_still_give_the_floor_its_daylight() {
             );
         }
     }
+}
+
+// `--sky map:FILE`: equirectangular maps written here, row 0 at the zenith, column c of W
+// at azimuth φ = 2π (c + ½) / W − π (the middle column along +X, three quarters along +Z).
+
+/// A W × H map of `texel(column, row)` as an OpenEXR file (32-bit float RGB).
+fn write_exr_map(
+    path: &std::path::Path,
+    w: usize,
+    h: usize,
+    texel: impl Fn(usize, usize) -> [f32; 3] + Sync,
+) {
+    exr::prelude::write_rgb_file(path, w, h, |c, r| {
+        let [a, b, d] = texel(c, r);
+        (a, b, d)
+    })
+    .expect("write the EXR map");
+}
+
+/// The same as a Radiance `.hdr` (RGBE).
+fn write_hdr_map(
+    path: &std::path::Path,
+    w: usize,
+    h: usize,
+    texel: impl Fn(usize, usize) -> [f32; 3],
+) {
+    let pixels: Vec<image::Rgb<f32>> = (0..w * h)
+        .map(|k| image::Rgb(texel(k % w, k / w)))
+        .collect();
+    let file = std::fs::File::create(path).expect("create the HDR map");
+    image::codecs::hdr::HdrEncoder::new(file)
+        .encode(&pixels, w, h)
+        .expect("write the HDR map");
+}
+
+/// A constant map of radiance 1 is `--sky uniform:1` with a ground of the same radiance:
+/// on an open floor exactly (the map's closed form, no ray), and on the courtyard's floor
+/// (sampled, the map's own rays among the others) the floor's total within 0.1%.
+#[test]
+fn a_constant_map_is_a_uniform_sky() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let map = dir.path().join("constant.exr");
+    write_exr_map(&map, 64, 32, |_, _| [1.0; 3]);
+    let sky = format!("map:{}", map.display());
+    let open = bake_json(
+        dir.path(),
+        "open",
+        &lit_scene(&[(floor(), [RHO; 3])], &[]),
+        &["--sky", &sky],
+    );
+    for e in &open.elements {
+        assert!((e.b[0] - RHO).abs() < 1e-6 * RHO, "open floor: {}", e.b[0]);
+    }
+    let stats = open.sky.expect("the report's sky").stats;
+    assert_eq!(stats.rays_cast, 0);
+    let args = |sky: &str| {
+        ["--sky", sky, "--max-element-size", "0.5", "--refine", "off"].map(str::to_string)
+    };
+    let floor_total = |report: &bake_job::report::Report| {
+        report
+            .elements
+            .iter()
+            .filter(|e| is_floor(e))
+            .map(|e| e.b[0] * e.area)
+            .sum::<f64>()
+    };
+    let a = args(&sky);
+    let b = args("uniform:1");
+    let mapped = bake_json(
+        dir.path(),
+        "map",
+        &courtyard(false),
+        &a.each_ref().map(String::as_str),
+    );
+    let uniform = bake_json(
+        dir.path(),
+        "uniform",
+        &courtyard(false),
+        &b.each_ref().map(String::as_str),
+    );
+    let (m, u) = (floor_total(&mapped), floor_total(&uniform));
+    eprintln!(
+        "courtyard floor: map {m:.6}, uniform {u:.6}, {:+.2e}",
+        (m - u) / u
+    );
+    assert!((m - u).abs() < 1e-3 * u, "map {m} against uniform {u}");
+}
+
+/// A map black but for one bright texel lights an open floor as a sun of the texel's
+/// direction and illuminance (radiance × the texel's solid angle), colour included,
+/// within 1%.
+#[test]
+fn a_one_texel_map_is_a_directional_light() {
+    let (w, h, column, row) = (64usize, 32usize, 40usize, 8usize);
+    // A power of two: RGBE stores all three bands exactly.
+    let radiance = 2048.0f32;
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let map = dir.path().join("sun.hdr");
+    write_hdr_map(&map, w, h, |c, r| {
+        if (c, r) == (column, row) {
+            [radiance, radiance / 2.0, radiance / 4.0]
+        } else {
+            [0.0; 3]
+        }
+    });
+    let (dt, dp) = (PI / h as f64, 2.0 * PI / w as f64);
+    let solid = dp * ((row as f64 * dt).cos() - ((row + 1) as f64 * dt).cos());
+    let elevation = PI / 2.0 - (row as f64 + 0.5) * dt;
+    let azimuth = (column as f64 + 0.5) * dp - PI;
+    let toward = [
+        elevation.cos() * azimuth.cos(),
+        elevation.sin(),
+        elevation.cos() * azimuth.sin(),
+    ];
+    let lux = f64::from(radiance) * solid;
+    let doc_map = lit_scene(&[(floor(), [RHO; 3])], &[]);
+    let mapped = bake_json(
+        dir.path(),
+        "map",
+        &doc_map,
+        &["--sky", &format!("map:{}", map.display())],
+    );
+    let doc_sun = lit_scene(
+        &[(floor(), [RHO; 3])],
+        &[(
+            serde_json::json!({ "type": "directional", "intensity": lux, "color": [1.0, 0.5, 0.25] }),
+            serde_json::json!({ "rotation": common::aim(toward.map(|x| -x)) }),
+        )],
+    );
+    let sun = bake_json(dir.path(), "sun", &doc_sun, &[]);
+    assert_eq!(mapped.elements.len(), sun.elements.len());
+    let mut worst = 0.0f64;
+    for (m, s) in mapped.elements.iter().zip(&sun.elements) {
+        for b in 0..3 {
+            let relative = (m.b[b] - s.b[b]) / s.b[b];
+            worst = worst.max(relative.abs());
+        }
+    }
+    eprintln!("one-texel map against a sun: worst {worst:.2e}");
+    assert!(worst < 1e-2, "worst {worst}");
+    // The sun's own closed form: ρ E⊥ sin γ / π, so the comparison is not vacuous.
+    let expected = RHO * lux * elevation.sin() / PI;
+    assert!((sun.elements[0].b[0] - expected).abs() < 1e-6 * expected);
+}
+
+/// A map that cannot be read is refused before any work, in one line naming the file.
+#[test]
+fn a_missing_map_is_refused_naming_the_file() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let input = dir.path().join("open.gltf");
+    common::write_json(&input, &lit_scene(&[(floor(), [RHO; 3])], &[]));
+    let out = dir.path().join("out.gltf");
+    let missing = dir.path().join("no-such-sky.exr");
+    let sky = format!("map:{}", missing.display());
+    let run = common::bake([
+        "--quiet",
+        input.to_str().expect("UTF-8 path"),
+        out.to_str().expect("UTF-8 path"),
+        "--sky",
+        &sky,
+    ]);
+    assert_eq!(run.code, Some(1), "{run:#?}");
+    assert!(run.stderr.contains("no-such-sky.exr"), "{}", run.stderr);
+    assert_eq!(run.stderr.trim().lines().count(), 1, "{}", run.stderr);
+    assert!(!out.exists());
 }

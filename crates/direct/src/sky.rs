@@ -22,11 +22,14 @@
 //!   rays alone, `π / n_c Σ L V`. Seeded by the element's index: the same bytes for any
 //!   thread count.
 
+use crate::envmap::EnvironmentMap;
 use crate::for_each_cell;
 use glam::DVec3;
 use mesher::ElementMesh;
 use rayon::prelude::*;
 use std::f64::consts::PI;
+use std::path::PathBuf;
+use std::sync::Arc;
 use visibility::{pair_seed, Occluders, Patch, SplitMix64};
 
 /// Rays per element some polygon may block from the sky, when the caller has no preset:
@@ -44,7 +47,7 @@ pub const MAX_SKY_SAMPLES: u32 = 16384;
 pub const DEFAULT_GROUND_REFLECTANCE: f64 = 0.2;
 
 /// How the sky's radiance varies over the dome.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(
     feature = "serde",
     derive(serde::Serialize, serde::Deserialize),
@@ -56,10 +59,18 @@ pub enum SkyModel {
     /// The CIE standard overcast sky (Moon & Spencer 1942; CIE S 011/E:2003 type 1): at
     /// elevation γ, `L(γ) = Lz (1 + 2 sin γ) / 3`, the horizon a third of the zenith.
     Overcast { zenith: f64 },
+    /// An equirectangular environment map (`.hdr` or `.exr`; orientation in
+    /// [`crate::envmap`]) over the whole sphere: its lower half is the ground. `map` is
+    /// `None` until the job loads the file ([`Sky::check`] refuses it then).
+    Map {
+        file: PathBuf,
+        #[cfg_attr(feature = "serde", serde(skip))]
+        map: Option<Arc<EnvironmentMap>>,
+    },
 }
 
 /// A sky over the scene and the ground below its horizon.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Sky {
     #[cfg_attr(feature = "serde", serde(flatten))]
@@ -71,8 +82,10 @@ pub struct Sky {
 /// A `--sky` value that is not a sky.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SkyError {
-    #[error("unknown sky {0:?}: expected uniform:L or overcast:Lz")]
+    #[error("unknown sky {0:?}: expected uniform:L, overcast:Lz or map:FILE")]
     Unknown(String),
+    #[error("the sky map {0} was not loaded")]
+    NotLoaded(String),
     #[error("the sky's radiance must be a finite number ≥ 0, got {0:?}")]
     Radiance(String),
     #[error("the ground reflectance must be in [0, 1], got {0}")]
@@ -82,11 +95,17 @@ pub enum SkyError {
 impl std::str::FromStr for SkyModel {
     type Err = SkyError;
 
-    /// `uniform:L` or `overcast:Lz`.
+    /// `uniform:L`, `overcast:Lz` or `map:FILE` (the file is read later, by the job).
     fn from_str(text: &str) -> Result<SkyModel, SkyError> {
         let (name, value) = text
             .split_once(':')
             .ok_or_else(|| SkyError::Unknown(text.to_string()))?;
+        if name.trim() == "map" && !value.is_empty() {
+            return Ok(SkyModel::Map {
+                file: PathBuf::from(value),
+                map: None,
+            });
+        }
         let radiance: f64 = value
             .trim()
             .parse()
@@ -102,20 +121,27 @@ impl std::str::FromStr for SkyModel {
 }
 
 impl SkyModel {
-    /// The radiance toward elevation `sin_elevation` = ω_y (> 0).
+    /// The radiance toward elevation `sin_elevation` = ω_y (> 0) of an analytic sky (0 for
+    /// a map: see [`Sky::radiance`]).
     pub fn radiance(&self, sin_elevation: f64) -> f64 {
         match *self {
             SkyModel::Uniform { radiance } => radiance,
             SkyModel::Overcast { zenith } => zenith * (1.0 + 2.0 * sin_elevation) / 3.0,
+            SkyModel::Map { .. } => 0.0,
         }
     }
 
     /// The unobstructed horizontal illuminance E_h = ∫ L(ω) ω_y dω over the upper
-    /// hemisphere: uniform π L; overcast 7π Lz / 9 (= Lz/3 (π + 2 · 2π/3)).
+    /// hemisphere: uniform π L; overcast 7π Lz / 9 (= Lz/3 (π + 2 · 2π/3)); a map's
+    /// luminance (Rec. 709) summed exactly (a pass over its texels).
     pub fn horizontal_illuminance(&self) -> f64 {
-        match *self {
+        match self {
             SkyModel::Uniform { radiance } => PI * radiance,
             SkyModel::Overcast { zenith } => 7.0 * PI * zenith / 9.0,
+            SkyModel::Map { map, .. } => map.as_ref().map_or(0.0, |m| {
+                let e = m.unobstructed(DVec3::Y);
+                0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2]
+            }),
         }
     }
 
@@ -128,6 +154,7 @@ impl SkyModel {
         let c = cos_tilt.clamp(-1.0, 1.0);
         let upper = PI * (1.0 + c) / 2.0;
         match *self {
+            SkyModel::Map { .. } => 0.0,
             SkyModel::Uniform { radiance } => radiance * upper,
             SkyModel::Overcast { zenith } => {
                 let beta = c.acos();
@@ -139,32 +166,56 @@ impl SkyModel {
 }
 
 impl Sky {
-    /// The ground's radiance `R E_h / π`.
-    pub fn ground_radiance(&self) -> f64 {
-        self.ground_reflectance * self.model.horizontal_illuminance() / PI
-    }
-
-    /// What a ray along the unit direction `d` that meets no surface sees.
-    pub fn radiance(&self, d: DVec3) -> f64 {
-        if d.y > 0.0 {
-            self.model.radiance(d.y)
-        } else {
-            self.ground_radiance()
+    /// The loaded map of a `map:` sky.
+    pub fn map(&self) -> Option<&EnvironmentMap> {
+        match &self.model {
+            SkyModel::Map { map, .. } => map.as_deref(),
+            _ => None,
         }
     }
 
-    /// The illuminance of an unobstructed plane whose unit normal has `cos_tilt` = n_y: the
-    /// sky's part ([`SkyModel::unobstructed`]) and the ground's `π L_g (1 − cos β) / 2`.
-    pub fn unobstructed(&self, cos_tilt: f64) -> f64 {
-        let c = cos_tilt.clamp(-1.0, 1.0);
-        self.model.unobstructed(c) + PI * self.ground_radiance() * (1.0 - c) / 2.0
+    /// The ground's radiance `R E_h / π` (0 for a map, whose lower half is the ground).
+    pub fn ground_radiance(&self) -> f64 {
+        if self.map().is_some() {
+            return 0.0;
+        }
+        self.ground_reflectance * self.model.horizontal_illuminance() / PI
     }
 
-    /// Checks the values a user's options control.
+    /// What a ray along the unit direction `d` that meets no surface sees, per band.
+    pub fn radiance(&self, d: DVec3) -> [f64; 3] {
+        if let Some(map) = self.map() {
+            return map.radiance(d);
+        }
+        [if d.y > 0.0 {
+            self.model.radiance(d.y)
+        } else {
+            self.ground_radiance()
+        }; 3]
+    }
+
+    /// The illuminance of an unobstructed plane of unit normal `n`, per band: a map's exact
+    /// sum ([`EnvironmentMap::unobstructed`], a pass over its texels), else the sky's part
+    /// ([`SkyModel::unobstructed`]) and the ground's `π L_g (1 − cos β) / 2`.
+    pub fn unobstructed(&self, n: DVec3) -> [f64; 3] {
+        if let Some(map) = self.map() {
+            return map.unobstructed(n);
+        }
+        let c = n.y.clamp(-1.0, 1.0);
+        [self.model.unobstructed(c) + PI * self.ground_radiance() * (1.0 - c) / 2.0; 3]
+    }
+
+    /// Checks the values a user's options control (a map must have been loaded).
     pub fn check(&self) -> Result<(), SkyError> {
-        let r = match self.model {
-            SkyModel::Uniform { radiance } => radiance,
-            SkyModel::Overcast { zenith } => zenith,
+        let r = match &self.model {
+            SkyModel::Uniform { radiance } => *radiance,
+            SkyModel::Overcast { zenith } => *zenith,
+            SkyModel::Map { file, map } => {
+                if map.is_none() {
+                    return Err(SkyError::NotLoaded(file.display().to_string()));
+                }
+                0.0
+            }
         };
         if !(r.is_finite() && r >= 0.0) {
             return Err(SkyError::Radiance(r.to_string()));
@@ -181,9 +232,9 @@ impl Sky {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct SkyStats {
-    /// `Σ_i A_i E_i`: lumens (the energy unit × π).
+    /// `Σ_i A_i E_i` per band: lumens (the energy unit × π).
     #[cfg_attr(feature = "serde", serde(skip))]
-    pub flux: f64,
+    pub flux: [f64; 3],
     /// Rays cast.
     pub rays_cast: u64,
     /// Elements receiving some light from the sky or the ground.
@@ -196,7 +247,9 @@ pub struct SkyStats {
 
 impl SkyStats {
     fn add(&mut self, o: &SkyStats) {
-        self.flux += o.flux;
+        for b in 0..3 {
+            self.flux[b] += o.flux[b];
+        }
         self.rays_cast += o.rays_cast;
         self.elements_lit += o.elements_lit;
         self.elements_exact += o.elements_exact;
@@ -207,8 +260,9 @@ impl SkyStats {
 /// The sky light of a scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SkyLight {
-    /// Per element: mean illuminance E (the sky is grey: the same in every band).
-    pub illuminance: Vec<f64>,
+    /// Per element and band: mean illuminance E (the analytic skies are grey: the same in
+    /// every band; a map has colour).
+    pub illuminance: Vec<[f64; 3]>,
     pub stats: SkyStats,
 }
 
@@ -227,6 +281,15 @@ pub fn illuminate(sky: &Sky, mesh: &ElementMesh, occluders: &Occluders, samples:
         .into_par_iter()
         .map(|p| occluders.any_in_front(&occluders.polygon(p)))
         .collect();
+    // The closed form of each polygon nothing can block (per polygon: a map's is a pass over
+    // its texels).
+    let closed: Vec<[f64; 3]> = (0..occluders.len())
+        .into_par_iter()
+        .map(|p| match exposed[p] {
+            true => [0.0; 3],
+            false => sky.unobstructed(occluders.polygon(p).normal()),
+        })
+        .collect();
     let blockable = |i: usize| exposed.get(mesh.elements[i].polygon as usize) != Some(&false);
     let mut pass = Pass {
         sky,
@@ -235,6 +298,7 @@ pub fn illuminate(sky: &Sky, mesh: &ElementMesh, occluders: &Occluders, samples:
         probes: if k >= 4 { k / 4 } else { 0 },
         reach: 2.0 * occluders.scene_scale(),
         portals: Portals::around(occluders),
+        closed: &closed,
     };
     // Stage 1: probe rays from every sampled element mark where the sky is reached (an OR
     // of marks: the same map for any thread count), and count, per element, how many met no
@@ -263,7 +327,7 @@ pub fn illuminate(sky: &Sky, mesh: &ElementMesh, occluders: &Occluders, samples:
         pass.portals.open_where(&marks);
     }
     let pass = pass;
-    let per_element: Vec<(f64, SkyStats)> = (0..mesh.elements.len())
+    let per_element: Vec<([f64; 3], SkyStats)> = (0..mesh.elements.len())
         .into_par_iter()
         .map_init(Scratch::default, |scratch, i| {
             pass.element(mesh, i, blockable(i).then_some(escaped[i]), scratch)
@@ -465,6 +529,8 @@ struct Pass<'a> {
     /// How far rays reach: past the whole scene from any point of it.
     reach: f64,
     portals: Portals,
+    /// Per polygon: the closed form of one nothing can block.
+    closed: &'a [[f64; 3]],
 }
 
 /// A sampled element's buffers, reused across the elements a thread takes (nothing is
@@ -486,6 +552,10 @@ const COSINE_SHARE: f64 = 0.25;
 /// this: where the sky fills much of the hemisphere, cosine-weighted rays alone do better
 /// (a wall facing an open landscape: the portals are then most of the box).
 const AIM_BELOW: f64 = 0.5;
+
+/// Under a map, the share of an element's rays drawn from the map's own distribution (its
+/// bright texels: a sun in a photographed sky).
+const MAP_SHARE: f64 = 0.25;
 
 impl Pass<'_> {
     /// Element `i`'s probe rays: cosine-weighted, stratified; each that meets no surface
@@ -530,14 +600,13 @@ impl Pass<'_> {
         i: usize,
         escaped: Option<u32>,
         scratch: &mut Scratch,
-    ) -> (f64, SkyStats) {
+    ) -> ([f64; 3], SkyStats) {
         let mut stats = SkyStats::default();
         let area = mesh.elements[i].area;
         if area <= 0.0 || area.is_nan() {
-            return (0.0, stats);
+            return ([0.0; 3], stats);
         }
         let patch = Patch::element(mesh, i);
-        let n = patch.normal();
         let e = if let Some(escaped) = escaped {
             stats.elements_sampled = 1;
             stats.rays_cast = (self.probes * self.probes) as u64;
@@ -546,11 +615,14 @@ impl Pass<'_> {
             self.sampled(&patch, i, aim, scratch, &mut stats)
         } else {
             stats.elements_exact = 1;
-            self.sky.unobstructed(n.y)
+            self.closed
+                .get(patch.polygon())
+                .copied()
+                .unwrap_or([0.0; 3])
         };
-        if e > 0.0 {
+        if e.iter().any(|&v| v > 0.0) {
             stats.elements_lit = 1;
-            stats.flux = e * area;
+            stats.flux = e.map(|v| v * area);
         }
         (e, stats)
     }
@@ -561,7 +633,9 @@ impl Pass<'_> {
     /// the portals' solid-angle density ([`Portals::density`], the cells drawn by the
     /// projected solid angle they subtend from the element's centre), both at the ray's own
     /// start point. Unbiased for any portal map (the cosine rays cover the whole
-    /// hemisphere); without aiming it is `π / n_c Σ L V`.
+    /// hemisphere); without aiming it is `π / n_c Σ L V`. Under a map, a third set of n_m
+    /// rays is drawn from the map's own distribution ([`EnvironmentMap::sample`], density
+    /// `p_m`), and `n_m p_m` joins the denominator.
     fn sampled(
         &self,
         patch: &Patch,
@@ -569,7 +643,7 @@ impl Pass<'_> {
         aim: bool,
         scratch: &mut Scratch,
         stats: &mut SkyStats,
-    ) -> f64 {
+    ) -> [f64; 3] {
         let Scratch { points, cdf } = scratch;
         let k = self.k;
         let n = patch.normal();
@@ -585,9 +659,14 @@ impl Pass<'_> {
         let mut rng = SplitMix64::new(pair_seed(i, 0) ^ SKY_STREAM);
         let lift = n * self.occluders.ray_offset();
         let polygon = patch.polygon();
-        let total = k * k - self.probes * self.probes;
-        // The cosine-weighted rays: a rows × cols grid of direction strata (rows × cols =
-        // n_c exactly, so that every stratum is drawn once).
+        let map = self.sky.map().filter(|m| !m.is_dark());
+        // Under a map: k_m × k_m rays drawn from it, from the k_m × k_m point strata.
+        let k_m = match map {
+            Some(_) => ((MAP_SHARE * (k * k) as f64).sqrt().round() as usize).min(k - 1),
+            None => 0,
+        };
+        let n_m = k_m * k_m;
+        let total = k * k - self.probes * self.probes - n_m;
         // The rays aimed at portals: k_a × k_a of them, from the k_a × k_a point strata.
         let k_a = if aim {
             (((1.0 - COSINE_SHARE) * total as f64).sqrt().round() as usize).min(k - 1)
@@ -607,7 +686,7 @@ impl Pass<'_> {
         let k_c = (n_c as f64).sqrt().ceil() as usize;
         // The start points, each set shuffled (a random pairing with the direction strata).
         points.clear();
-        for (side, count) in [(k_c, n_c), (k_a, n_a)] {
+        for (side, count) in [(k_c, n_c), (k_a, n_a), (k_m, n_m)] {
             let from = points.len();
             for_each_cell(patch.corners(), side, |_, _, jitter| {
                 points.push(jitter([rng.next_f64(), rng.next_f64()]) + lift);
@@ -618,25 +697,31 @@ impl Pass<'_> {
             }
             points.truncate(from + count);
         }
-        let (nc, na) = (n_c as f64, n_a as f64);
+        let (nc, na, nm) = (n_c as f64, n_a as f64, n_m as f64);
         let weight = |p: DVec3, d: DVec3| {
             let cos = d.dot(n);
-            let density = nc * cos / PI
-                + if n_a > 0 {
-                    na * self.portals.density(cdf, cells_total, p, d)
-                } else {
-                    0.0
-                };
+            let mut density = nc * cos / PI;
+            if n_a > 0 {
+                density += na * self.portals.density(cdf, cells_total, p, d);
+            }
+            if let Some(map) = map {
+                density += nm * map.density(d);
+            }
             cos / density
         };
-        let mut sum = 0.0;
+        let mut sum = [0.0; 3];
+        let mut add = |value: [f64; 3], w: f64| {
+            for b in 0..3 {
+                sum[b] += value[b] * w;
+            }
+        };
         for (j, &p) in points.iter().take(n_c).enumerate() {
             let u = ((j % cols) as f64 + rng.next_f64()) / cols as f64;
             let v = ((j / cols) as f64 + rng.next_f64()) / rows as f64;
             let d = frame.cosine(u, v);
             let value = self.trace(p, d, polygon, stats);
-            if value > 0.0 {
-                sum += value * weight(p, d);
+            if value.iter().any(|&v| v > 0.0) {
+                add(value, weight(p, d));
             }
         }
         // Rays aimed at the portals: stratified by the running sum of the cells' weights.
@@ -652,8 +737,24 @@ impl Pass<'_> {
                 continue;
             }
             let value = self.trace(p, d, polygon, stats);
-            if value > 0.0 {
-                sum += value * weight(p, d);
+            if value.iter().any(|&v| v > 0.0) {
+                add(value, weight(p, d));
+            }
+        }
+        // Rays drawn from the map: stratified by its running sums.
+        if let Some(map) = map {
+            for (j, &p) in points.iter().skip(n_c + n_a).take(n_m).enumerate() {
+                let Some((d, _)) = map.sample((j as f64 + rng.next_f64()) / nm, rng.next_f64())
+                else {
+                    continue;
+                };
+                if d.dot(n) <= 0.0 {
+                    continue;
+                }
+                let value = self.trace(p, d, polygon, stats);
+                if value.iter().any(|&v| v > 0.0) {
+                    add(value, weight(p, d));
+                }
             }
         }
         sum
@@ -661,13 +762,13 @@ impl Pass<'_> {
 
     /// The radiance a ray from `p` along `d` brings: the sky's (or the ground's) if it meets
     /// no polygon but its own, else 0.
-    fn trace(&self, p: DVec3, d: DVec3, polygon: usize, stats: &mut SkyStats) -> f64 {
+    fn trace(&self, p: DVec3, d: DVec3, polygon: usize, stats: &mut SkyStats) -> [f64; 3] {
         stats.rays_cast += 1;
         if self
             .occluders
             .segment_blocked(p, p + d * self.reach, [polygon, polygon])
         {
-            0.0
+            [0.0; 3]
         } else {
             self.sky.radiance(d)
         }
@@ -733,7 +834,7 @@ mod tests {
                 );
                 let cos = d.dot(n);
                 if cos > 0.0 {
-                    sum += sky.radiance(d) * cos * theta.sin() * dt * dp;
+                    sum += sky.radiance(d)[0] * cos * theta.sin() * dt * dp;
                 }
             }
         }
@@ -747,12 +848,12 @@ mod tests {
             SkyModel::Overcast { zenith: 2.3 },
         ] {
             let sky = Sky {
-                model,
+                model: model.clone(),
                 ground_reflectance: 0.3,
             };
             for beta in [0.0f64, 0.4, 1.0, PI / 2.0, 2.0, 2.9, PI] {
                 let n = DVec3::new(beta.sin(), beta.cos(), 0.0);
-                let exact = sky.unobstructed(n.y);
+                let exact = sky.unobstructed(n)[0];
                 let reference = quadrature(&sky, n, 1200);
                 assert!(
                     (exact - reference).abs() < 2e-4 * sky.model.horizontal_illuminance(),
@@ -760,7 +861,7 @@ mod tests {
                 );
             }
             // Facing up: E_h.
-            let up = sky.unobstructed(1.0);
+            let up = sky.unobstructed(DVec3::Y)[2];
             assert!((up - sky.model.horizontal_illuminance()).abs() < 1e-12 * up);
         }
     }
