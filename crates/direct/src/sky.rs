@@ -4,7 +4,9 @@
 //!
 //! "Up" is +Y (glTF's convention). A direction ω with ω_y > 0 sees the sky's radiance
 //! L(ω); one with ω_y ≤ 0 sees a ground of radiance `R E_h / π` (a diffuse ground of
-//! reflectance R under the sky's unobstructed horizontal illuminance E_h).
+//! reflectance R under the sky's unobstructed horizontal illuminance E_h). A map sky
+//! (`SkyModel::Map`, [`crate::envmap`]) gives every direction its texel's radiance, per band:
+//! its lower half is the ground.
 //!
 //! An element's illuminance is `E = ∫ L(ω) cos θ V(ω) dω` over its front hemisphere, V = 0
 //! where any polygon — front or back face — lies along ω (alpha cut-outs let rays through
@@ -14,12 +16,13 @@
 //!   plane tilted β from up ([`Sky::unobstructed`]);
 //! - **rays** elsewhere, N = k × k per element in two stages (docs/lights.md, "Sky"):
 //!   (k/4)² cosine-weighted **probe** rays per element mark, on a grid over each face of the
-//!   scene's bounding box, where rays that met no surface left the box ([`Portals`]: the
+//!   scene's bounding box, where rays that met no surface left the box (`Portals`: the
 //!   openings, found, not declared); then the other rays, cosine-weighted ones and ones
 //!   **aimed** at the open cells (drawn by the projected solid angle each subtends from the
 //!   element), combined by the balance heuristic: `E ≈ Σ L V cos θ / (n_c p_c + n_a p_a)`,
 //!   unbiased whatever the probes found. Elements whose probes mostly escaped use cosine
-//!   rays alone, `π / n_c Σ L V`. Seeded by the element's index: the same bytes for any
+//!   rays alone, `π / n_c Σ L V`. Under a map a quarter of the rays are drawn from the
+//!   map's own distribution and join the same heuristic. Seeded by the element's index: the same bytes for any
 //!   thread count.
 
 use crate::envmap::EnvironmentMap;
