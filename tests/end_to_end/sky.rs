@@ -273,20 +273,20 @@ fn an_open_floor_gets_the_closed_form_and_casts_no_ray() {
     }
 }
 
-#[test]
-fn sky_light_is_the_same_bytes_for_any_thread_count() {
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    let input = dir.path().join("courtyard.gltf");
+/// The courtyard under `--sky SKY` with 64 rays per element baked with 1 and 2 threads:
+/// the same bytes.
+fn assert_sky_same_bytes_for_thread_counts(dir: &std::path::Path, sky: &str) {
+    let input = dir.join("courtyard.gltf");
     common::write_json(&input, &courtyard(false));
     common::assert_same_bytes_for_thread_counts(
-        dir.path(),
+        dir,
         &input,
         &["1", "2"],
         &[
             "--target",
             "vertex",
             "--sky",
-            "overcast:3",
+            sky,
             "--sky-samples",
             "64",
             "--max-element-size",
@@ -294,6 +294,12 @@ fn sky_light_is_the_same_bytes_for_any_thread_count() {
         ],
         &["gltf", "bin"],
     );
+}
+
+#[test]
+fn sky_light_is_the_same_bytes_for_any_thread_count() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    assert_sky_same_bytes_for_thread_counts(dir.path(), "overcast:3");
 }
 
 /// A 2 × 2 m wall (ρ = 0.5) facing +x under `--sky overcast:Lz` with a ground of R = 0.3, and
@@ -822,4 +828,17 @@ fn a_missing_map_is_refused_naming_the_file() {
     assert!(run.stderr.contains("no-such-sky.exr"), "{}", run.stderr);
     assert_eq!(run.stderr.trim().lines().count(), 1, "{}", run.stderr);
     assert!(!out.exists());
+}
+
+/// A map sky, its own rays included, gives the same bytes for 1 and 2 threads.
+#[test]
+fn a_map_sky_is_the_same_bytes_for_any_thread_count() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let map = dir.path().join("varied.exr");
+    write_exr_map(&map, 32, 16, |c, r| {
+        let v = 0.2 + ((c * 7 + r * 3) % 11) as f32 + if (c, r) == (20, 4) { 500.0 } else { 0.0 };
+        [v, v * 0.7, v * 0.4]
+    });
+    let sky = format!("map:{}", map.display());
+    assert_sky_same_bytes_for_thread_counts(dir.path(), &sky);
 }
