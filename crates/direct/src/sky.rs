@@ -284,13 +284,25 @@ pub fn illuminate(sky: &Sky, mesh: &ElementMesh, occluders: &Occluders, samples:
         .into_par_iter()
         .map(|p| occluders.any_in_front(&occluders.polygon(p)))
         .collect();
-    // The closed form of each polygon nothing can block (per polygon: a map's is a pass over
-    // its texels).
+    // The closed form of each polygon nothing can block, once per distinct normal (a map's
+    // is a pass over its texels; a scene's floors and walls share a few normals).
+    let key = |p: usize| occluders.polygon(p).normal().to_array().map(f64::to_bits);
+    let mut normals: Vec<[u64; 3]> = (0..occluders.len())
+        .filter(|&p| !exposed[p])
+        .map(key)
+        .collect();
+    normals.sort_unstable();
+    normals.dedup();
+    let forms: Vec<[f64; 3]> = normals
+        .par_iter()
+        .map(|n| sky.unobstructed(DVec3::from_array(n.map(f64::from_bits))))
+        .collect();
     let closed: Vec<[f64; 3]> = (0..occluders.len())
-        .into_par_iter()
         .map(|p| match exposed[p] {
             true => [0.0; 3],
-            false => sky.unobstructed(occluders.polygon(p).normal()),
+            false => normals
+                .binary_search(&key(p))
+                .map_or([0.0; 3], |k| forms[k]),
         })
         .collect();
     let blockable = |i: usize| exposed.get(mesh.elements[i].polygon as usize) != Some(&false);
