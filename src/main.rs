@@ -124,11 +124,13 @@ pub struct Cli {
     #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=1024),
           help_heading = "Lights")]
     pub light_samples: Option<u32>,
-    /// A sky over the scene as a light source: uniform:L or overcast:Lz.
+    /// A sky over the scene as a light source: uniform:L, overcast:Lz or map:FILE.
     ///
     /// uniform:L is the same radiance L in every direction above the horizon; overcast:Lz the
     /// CIE standard overcast sky, L(γ) = Lz (1 + 2 sin γ) / 3 at elevation γ (the horizon a
-    /// third of the zenith). Radiance is in the bake's units (cd/m² when the lights are in
+    /// third of the zenith); map:FILE an equirectangular .hdr or .exr map over the whole
+    /// sphere (row 0 at the zenith, the middle column along +X, three quarters along +Z; its
+    /// lower half is the ground). Radiance is in the bake's units (cd/m² when the lights are in
     /// candela and lux). +Y is up. The sky is what a ray reaches when it meets no surface at
     /// all: any polygon, front or back face, blocks it; below the horizon a ray that meets
     /// nothing sees the ground (--ground-reflectance). See docs/lights.md, "Sky".
@@ -425,7 +427,7 @@ impl Cli {
             transport: self.transport,
             link_tolerance: self.link_tolerance,
             light_samples: self.light_samples,
-            sky: self.sky.map(|model| Sky {
+            sky: self.sky.clone().map(|model| Sky {
                 model,
                 ground_reflectance: self.ground_reflectance,
             }),

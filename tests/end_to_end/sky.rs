@@ -193,10 +193,13 @@ fn a_black_walled_courtyard_matches_the_view_factor_to_its_opening() {
     let per_element = report.options["sky_samples"].as_u64().expect("sky_samples");
     // Every element (floor and walls) has some polygon in front of it: all sampled.
     assert_eq!(sky.stats.elements_exact, 0);
-    assert_eq!(
-        sky.stats.rays_cast,
-        sky.stats.elements_sampled * per_element,
-        "a square number of rays per element"
+    // At most `--sky-samples` rays per element (probes included); rays aimed at an opening
+    // below an element's horizon are not cast.
+    let most = sky.stats.elements_sampled * per_element;
+    assert!(
+        sky.stats.rays_cast <= most && sky.stats.rays_cast > most * 9 / 10,
+        "{} rays for {most}",
+        sky.stats.rays_cast
     );
     assert_eq!(sky.stats.elements_sampled as usize, report.elements.len());
     assert!(
@@ -270,20 +273,20 @@ fn an_open_floor_gets_the_closed_form_and_casts_no_ray() {
     }
 }
 
-#[test]
-fn sky_light_is_the_same_bytes_for_any_thread_count() {
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    let input = dir.path().join("courtyard.gltf");
+/// The courtyard under `--sky SKY` with 64 rays per element baked with 1 and 2 threads:
+/// the same bytes.
+fn assert_sky_same_bytes_for_thread_counts(dir: &std::path::Path, sky: &str) {
+    let input = dir.join("courtyard.gltf");
     common::write_json(&input, &courtyard(false));
     common::assert_same_bytes_for_thread_counts(
-        dir.path(),
+        dir,
         &input,
         &["1", "2"],
         &[
             "--target",
             "vertex",
             "--sky",
-            "overcast:3",
+            sky,
             "--sky-samples",
             "64",
             "--max-element-size",
@@ -291,6 +294,12 @@ fn sky_light_is_the_same_bytes_for_any_thread_count() {
         ],
         &["gltf", "bin"],
     );
+}
+
+#[test]
+fn sky_light_is_the_same_bytes_for_any_thread_count() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    assert_sky_same_bytes_for_thread_counts(dir.path(), "overcast:3");
 }
 
 /// A 2 × 2 m wall (ρ = 0.5) facing +x under `--sky overcast:Lz` with a ground of R = 0.3, and
@@ -361,7 +370,7 @@ fn a_sky_that_is_not_one_is_refused_with_a_readable_line() {
     common::write_json(&input, &lit_scene(&[(floor(), [RHO; 3])], &[]));
     let out = dir.path().join("out.gltf");
     for (args, says) in [
-        (["--sky", "clear"], "uniform:L or overcast:Lz"),
+        (["--sky", "clear"], "uniform:L, overcast:Lz or map:FILE"),
         (["--sky", "uniform:-2"], "finite number ≥ 0"),
         (["--ground-reflectance", "1.5"], "reflectance in [0, 1]"),
     ] {
@@ -399,4 +408,437 @@ fn ev100_exposure_maps_1_2_times_2_to_the_n_to_one() {
     let run = common::bake(["--exposure", "ev100:many", "a.gltf", "b.gltf"]);
     assert_eq!(run.code, Some(2));
     assert!(run.stderr.contains("ev100:N"), "{}", run.stderr);
+}
+
+// A room with one window (issue 35's daylight-factor target): 4 × 4 m floor (ρ = 0.5), 3 m
+// high, black walls and ceiling facing in, and a 2 × 1.5 m opening in the wall z = −2 (x in
+// [−1, 1], y in [1, 2.5]). Only the window lets light in and everything else is black, so a
+// floor point's illuminance is exactly the sky seen through the window: its daylight factor
+// is that over the sky's unobstructed horizontal illuminance.
+
+const ROOM_HALF: f64 = 2.0;
+const ROOM_HEIGHT: f64 = 3.0;
+const WINDOW: [f64; 4] = [-1.0, 1.0, 1.0, 2.5];
+
+fn window_room() -> Value {
+    let (h, y) = (ROOM_HALF, ROOM_HEIGHT);
+    let [x0, x1, y0, y1] = WINDOW;
+    let inward_z = [0.0, 0.0, 1.0];
+    let mut walls = Vec::new();
+    // The window wall, four quads around the opening.
+    walls.extend(quad(
+        [-h, 0.0, -h],
+        [h, 0.0, -h],
+        [h, y0, -h],
+        [-h, y0, -h],
+        inward_z,
+    ));
+    walls.extend(quad(
+        [-h, y1, -h],
+        [h, y1, -h],
+        [h, y, -h],
+        [-h, y, -h],
+        inward_z,
+    ));
+    walls.extend(quad(
+        [-h, y0, -h],
+        [x0, y0, -h],
+        [x0, y1, -h],
+        [-h, y1, -h],
+        inward_z,
+    ));
+    walls.extend(quad(
+        [x1, y0, -h],
+        [h, y0, -h],
+        [h, y1, -h],
+        [x1, y1, -h],
+        inward_z,
+    ));
+    walls.extend(quad(
+        [-h, 0.0, h],
+        [h, 0.0, h],
+        [h, y, h],
+        [-h, y, h],
+        [0.0, 0.0, -1.0],
+    ));
+    walls.extend(quad(
+        [-h, 0.0, -h],
+        [-h, 0.0, h],
+        [-h, y, h],
+        [-h, y, -h],
+        [1.0, 0.0, 0.0],
+    ));
+    walls.extend(quad(
+        [h, 0.0, -h],
+        [h, 0.0, h],
+        [h, y, h],
+        [h, y, -h],
+        [-1.0, 0.0, 0.0],
+    ));
+    walls.extend(quad(
+        [-h, y, -h],
+        [h, y, -h],
+        [h, y, h],
+        [-h, y, h],
+        [0.0, -1.0, 0.0],
+    ));
+    let floor = quad(
+        [-h, 0.0, -h],
+        [h, 0.0, -h],
+        [h, 0.0, h],
+        [-h, 0.0, h],
+        [0.0, 1.0, 0.0],
+    );
+    lit_scene(&[(floor, [RHO; 3]), (walls, [0.0; 3])], &[])
+}
+
+/// The overcast sky's illuminance (Lz = 1) at the floor point (x, 0, z) through the window:
+/// ∫ L(ω) cos θ dω written over the window's area, `L (y / r) ((z + 2) / r) / r² dA` (r the
+/// distance to the window point, y its height, z + 2 the point's distance from the window's
+/// plane; L = (1 + 2 y / r) / 3), by an n × n midpoint rule per metre of window. Independent
+/// of the bake: no rays, no hemisphere.
+fn through_window(x: f64, z: f64, n: usize) -> f64 {
+    let [x0, x1, y0, y1] = WINDOW;
+    let (nx, ny) = (
+        ((x1 - x0) * n as f64) as usize,
+        ((y1 - y0) * n as f64) as usize,
+    );
+    let (dx, dy) = ((x1 - x0) / nx as f64, (y1 - y0) / ny as f64);
+    let depth = z + ROOM_HALF;
+    let mut sum = 0.0;
+    for i in 0..nx {
+        let wx = x0 + (i as f64 + 0.5) * dx - x;
+        for j in 0..ny {
+            let wy = y0 + (j as f64 + 0.5) * dy;
+            let r2 = wx * wx + wy * wy + depth * depth;
+            let r = r2.sqrt();
+            let radiance = (1.0 + 2.0 * wy / r) / 3.0;
+            sum += radiance * (wy / r) * (depth / r) / r2;
+        }
+    }
+    sum * dx * dy
+}
+
+/// The daylight factor (illuminance over the overcast sky's E_h = 7π/9 for Lz = 1) averaged
+/// over a square floor element: a 6 × 6 midpoint rule over the element.
+fn element_daylight_factor(centroid: [f64; 3], area: f64) -> f64 {
+    let side = area.sqrt();
+    let m = 6;
+    let mut sum = 0.0;
+    for i in 0..m {
+        for j in 0..m {
+            let x = centroid[0] + side * ((i as f64 + 0.5) / m as f64 - 0.5);
+            let z = centroid[2] + side * ((j as f64 + 0.5) / m as f64 - 0.5);
+            sum += through_window(x, z, 30);
+        }
+    }
+    sum / (m * m) as f64 / (7.0 * PI / 9.0)
+}
+
+/// The window room baked under `--sky overcast:1` with 0.5 m elements (`samples`: the
+/// `--sky-samples` option, or the quality's default) → per floor element (baked daylight
+/// factor, the reference's).
+fn window_room_daylight(dir: &std::path::Path, samples: Option<&str>) -> Vec<(f64, f64)> {
+    let mut args = vec![
+        "--sky",
+        "overcast:1",
+        "--max-element-size",
+        "0.5",
+        "--refine",
+        "off",
+    ];
+    if let Some(s) = samples {
+        args.extend(["--sky-samples", s]);
+    }
+    let report = bake_json(dir, "window", &window_room(), &args);
+    let e_h = 7.0 * PI / 9.0;
+    report
+        .elements
+        .iter()
+        .filter(|e| is_floor(e))
+        .map(|e| {
+            // b = ρ E / π → DF = E / E_h = π b / (ρ E_h).
+            let baked = PI * e.b[0] / (RHO * e_h);
+            (baked, element_daylight_factor(e.centroid, e.area))
+        })
+        .collect()
+}
+
+/// Area-uniform RMS and worst relative error of (value, reference) pairs.
+fn relative_errors(pairs: &[(f64, f64)]) -> (f64, f64) {
+    let (mut sum_sq, mut worst) = (0.0, 0.0f64);
+    for (value, reference) in pairs {
+        let r = (value - reference) / reference;
+        sum_sq += r * r;
+        worst = worst.max(r.abs());
+    }
+    ((sum_sq / pairs.len() as f64).sqrt(), worst)
+}
+
+#[test]
+fn the_window_reference_converges_and_matches_a_known_value() {
+    // Refining the window's rule moves the value by far less than the test's tolerance.
+    let (coarse, fine) = (through_window(0.3, 0.7, 30), through_window(0.3, 0.7, 120));
+    assert!(
+        (coarse - fine).abs() < 1e-4 * fine,
+        "{coarse} against {fine}"
+    );
+    // A point on the window's axis under a uniform sky would see the rectangle's view
+    // factor; with the overcast weighting the value lies between 1/3 and 1 of π × it.
+    let df = through_window(0.0, 0.0, 60) / (7.0 * PI / 9.0);
+    assert!(df > 0.01 && df < 0.2, "daylight factor {df}");
+}
+
+/// The issue's target: daylight factors at every floor element within 5% of the reference,
+/// at the default `--sky-samples` (the normal quality's 1024).
+#[test]
+fn a_window_room_matches_the_daylight_factor_reference() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let floor = window_room_daylight(dir.path(), None);
+    assert_eq!(floor.len(), 64, "an 8 × 8 grid on the floor");
+    let (rms, worst) = relative_errors(&floor);
+    eprintln!("window room, default rays: RMS {rms:.2e}, worst {worst:.2e}");
+    for (baked, reference) in &floor {
+        assert!(
+            (baked - reference).abs() < 0.05 * reference,
+            "daylight factor {baked:.5} against {reference:.5}"
+        );
+    }
+}
+
+/// The errors docs/lights.md quotes, measured: daylight factors in the window room and the
+/// courtyard's floor against their references at 256, 1024 and 4096 rays, RMS and worst
+/// element, none more than 5% (of itself) above the documented value (the rays are seeded:
+/// a change of the sampling shows here).
+#[test]
+fn sky_sampling_errors_by_ray_count() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    // (rays, window RMS, window worst, courtyard RMS, courtyard worst) as documented.
+    let documented = [
+        ("256", 0.034, 0.095, 0.020, 0.059),
+        ("1024", 0.0148, 0.037, 0.0056, 0.022),
+        ("4096", 0.0089, 0.029, 0.0021, 0.0098),
+    ];
+    let mut failed = Vec::new();
+    for (samples, window_rms, window_worst, court_rms, court_worst) in documented {
+        let (rms, worst) = relative_errors(&window_room_daylight(dir.path(), Some(samples)));
+        eprintln!("window room, {samples} rays: RMS {rms:.4}, worst {worst:.4}");
+        let window = rms <= window_rms * 1.05 && worst <= window_worst * 1.05;
+        let report = bake_courtyard(dir.path(), "courtyard", false, "0.5", samples);
+        let floor: Vec<_> = report
+            .elements
+            .iter()
+            .filter(|e| is_floor(e))
+            .map(|e| (e.b[0], RHO * element_opening(e.centroid, e.area)))
+            .collect();
+        let (rms, worst) = relative_errors(&floor);
+        let seconds = report.timings.get("sky_light").copied().unwrap_or(f64::NAN);
+        eprintln!("courtyard, {samples} rays: RMS {rms:.4}, worst {worst:.4}, sky {seconds:.3} s");
+        let court = rms <= court_rms * 1.05 && worst <= court_worst * 1.05;
+        failed.extend((!window).then_some(format!("window room at {samples}")));
+        failed.extend((!court).then_some(format!("courtyard at {samples}")));
+    }
+    assert!(failed.is_empty(), "worse than documented: {failed:?}");
+}
+
+/// The fewest rays still give a finite, non-negative sky on every element (one ray: no
+/// probes; 16: one probe, then aimed and cosine rays), and the floor's mean daylight factor
+/// at 16 rays is that of the reference within 15% (the mean of 64 elements' noise).
+#[test]
+fn few_sky_rays_still_give_the_floor_its_daylight() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    for samples in ["1", "16"] {
+        let floor = window_room_daylight(dir.path(), Some(samples));
+        assert_eq!(floor.len(), 64);
+        assert!(
+            floor.iter().all(|(b, _)| b.is_finite() && *b >= 0.0),
+            "{samples} rays: {floor:?}"
+        );
+        if samples == "16" {
+            let mean = |f: fn(&(f64, f64)) -> f64| floor.iter().map(f).sum::<f64>() / 64.0;
+            let (baked, reference) = (mean(|p| p.0), mean(|p| p.1));
+            assert!(
+                (baked - reference).abs() < 0.15 * reference,
+                "mean daylight factor {baked} against {reference}"
+            );
+        }
+    }
+}
+
+// `--sky map:FILE`: equirectangular maps written here, row 0 at the zenith, column c of W
+// at azimuth φ = 2π (c + ½) / W − π (the middle column along +X, three quarters along +Z).
+
+/// A W × H map of `texel(column, row)` as an OpenEXR file (32-bit float RGB).
+fn write_exr_map(
+    path: &std::path::Path,
+    w: usize,
+    h: usize,
+    texel: impl Fn(usize, usize) -> [f32; 3] + Sync,
+) {
+    exr::prelude::write_rgb_file(path, w, h, |c, r| {
+        let [a, b, d] = texel(c, r);
+        (a, b, d)
+    })
+    .expect("write the EXR map");
+}
+
+/// The same as a Radiance `.hdr` (RGBE).
+fn write_hdr_map(
+    path: &std::path::Path,
+    w: usize,
+    h: usize,
+    texel: impl Fn(usize, usize) -> [f32; 3],
+) {
+    let pixels: Vec<image::Rgb<f32>> = (0..w * h)
+        .map(|k| image::Rgb(texel(k % w, k / w)))
+        .collect();
+    let file = std::fs::File::create(path).expect("create the HDR map");
+    image::codecs::hdr::HdrEncoder::new(file)
+        .encode(&pixels, w, h)
+        .expect("write the HDR map");
+}
+
+/// A constant map of radiance 1 is `--sky uniform:1` with a ground of the same radiance:
+/// on an open floor exactly (the map's closed form, no ray), and on the courtyard's floor
+/// (sampled, the map's own rays among the others) the floor's total within 0.1%.
+#[test]
+fn a_constant_map_is_a_uniform_sky() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let map = dir.path().join("constant.exr");
+    write_exr_map(&map, 64, 32, |_, _| [1.0; 3]);
+    let sky = format!("map:{}", map.display());
+    let open = bake_json(
+        dir.path(),
+        "open",
+        &lit_scene(&[(floor(), [RHO; 3])], &[]),
+        &["--sky", &sky],
+    );
+    for e in &open.elements {
+        assert!((e.b[0] - RHO).abs() < 1e-6 * RHO, "open floor: {}", e.b[0]);
+    }
+    let stats = open.sky.expect("the report's sky").stats;
+    assert_eq!(stats.rays_cast, 0);
+    let args = |sky: &str| {
+        ["--sky", sky, "--max-element-size", "0.5", "--refine", "off"].map(str::to_string)
+    };
+    let floor_total = |report: &bake_job::report::Report| {
+        report
+            .elements
+            .iter()
+            .filter(|e| is_floor(e))
+            .map(|e| e.b[0] * e.area)
+            .sum::<f64>()
+    };
+    let a = args(&sky);
+    let b = args("uniform:1");
+    let mapped = bake_json(
+        dir.path(),
+        "map",
+        &courtyard(false),
+        &a.each_ref().map(String::as_str),
+    );
+    let uniform = bake_json(
+        dir.path(),
+        "uniform",
+        &courtyard(false),
+        &b.each_ref().map(String::as_str),
+    );
+    let (m, u) = (floor_total(&mapped), floor_total(&uniform));
+    eprintln!(
+        "courtyard floor: map {m:.6}, uniform {u:.6}, {:+.2e}",
+        (m - u) / u
+    );
+    assert!((m - u).abs() < 1e-3 * u, "map {m} against uniform {u}");
+}
+
+/// A map black but for one bright texel lights an open floor as a sun of the texel's
+/// direction and illuminance (radiance × the texel's solid angle), colour included,
+/// within 1%.
+#[test]
+fn a_one_texel_map_is_a_directional_light() {
+    let (w, h, column, row) = (64usize, 32usize, 40usize, 8usize);
+    // A power of two: RGBE stores all three bands exactly.
+    let radiance = 2048.0f32;
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let map = dir.path().join("sun.hdr");
+    write_hdr_map(&map, w, h, |c, r| {
+        if (c, r) == (column, row) {
+            [radiance, radiance / 2.0, radiance / 4.0]
+        } else {
+            [0.0; 3]
+        }
+    });
+    let (dt, dp) = (PI / h as f64, 2.0 * PI / w as f64);
+    let solid = dp * ((row as f64 * dt).cos() - ((row + 1) as f64 * dt).cos());
+    let elevation = PI / 2.0 - (row as f64 + 0.5) * dt;
+    let azimuth = (column as f64 + 0.5) * dp - PI;
+    let toward = [
+        elevation.cos() * azimuth.cos(),
+        elevation.sin(),
+        elevation.cos() * azimuth.sin(),
+    ];
+    let lux = f64::from(radiance) * solid;
+    let doc_map = lit_scene(&[(floor(), [RHO; 3])], &[]);
+    let mapped = bake_json(
+        dir.path(),
+        "map",
+        &doc_map,
+        &["--sky", &format!("map:{}", map.display())],
+    );
+    let doc_sun = lit_scene(
+        &[(floor(), [RHO; 3])],
+        &[(
+            serde_json::json!({ "type": "directional", "intensity": lux, "color": [1.0, 0.5, 0.25] }),
+            serde_json::json!({ "rotation": common::aim(toward.map(|x| -x)) }),
+        )],
+    );
+    let sun = bake_json(dir.path(), "sun", &doc_sun, &[]);
+    assert_eq!(mapped.elements.len(), sun.elements.len());
+    let mut worst = 0.0f64;
+    for (m, s) in mapped.elements.iter().zip(&sun.elements) {
+        for b in 0..3 {
+            let relative = (m.b[b] - s.b[b]) / s.b[b];
+            worst = worst.max(relative.abs());
+        }
+    }
+    eprintln!("one-texel map against a sun: worst {worst:.2e}");
+    assert!(worst < 1e-2, "worst {worst}");
+    // The sun's own closed form: ρ E⊥ sin γ / π, so the comparison is not vacuous.
+    let expected = RHO * lux * elevation.sin() / PI;
+    assert!((sun.elements[0].b[0] - expected).abs() < 1e-6 * expected);
+}
+
+/// A map that cannot be read is refused before any work, in one line naming the file.
+#[test]
+fn a_missing_map_is_refused_naming_the_file() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let input = dir.path().join("open.gltf");
+    common::write_json(&input, &lit_scene(&[(floor(), [RHO; 3])], &[]));
+    let out = dir.path().join("out.gltf");
+    let missing = dir.path().join("no-such-sky.exr");
+    let sky = format!("map:{}", missing.display());
+    let run = common::bake([
+        "--quiet",
+        input.to_str().expect("UTF-8 path"),
+        out.to_str().expect("UTF-8 path"),
+        "--sky",
+        &sky,
+    ]);
+    assert_eq!(run.code, Some(1), "{run:#?}");
+    assert!(run.stderr.contains("no-such-sky.exr"), "{}", run.stderr);
+    assert_eq!(run.stderr.trim().lines().count(), 1, "{}", run.stderr);
+    assert!(!out.exists());
+}
+
+/// A map sky, its own rays included, gives the same bytes for 1 and 2 threads.
+#[test]
+fn a_map_sky_is_the_same_bytes_for_any_thread_count() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let map = dir.path().join("varied.exr");
+    write_exr_map(&map, 32, 16, |c, r| {
+        let v = 0.2 + ((c * 7 + r * 3) % 11) as f32 + if (c, r) == (20, 4) { 500.0 } else { 0.0 };
+        [v, v * 0.7, v * 0.4]
+    });
+    let sky = format!("map:{}", map.display());
+    assert_sky_same_bytes_for_thread_counts(dir.path(), &sky);
 }

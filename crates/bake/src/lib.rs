@@ -30,6 +30,7 @@ pub use settings::{
 };
 
 pub use accuracy::Accuracy;
+pub use direct::envmap::EnvironmentMap;
 pub use direct::sky::{
     Sky, SkyModel, SkyStats, DEFAULT_GROUND_REFLECTANCE, DEFAULT_SKY_SAMPLES, MAX_SKY_SAMPLES,
 };
@@ -624,7 +625,7 @@ impl Light {
             |h: &[f64; BANDS], r: &[f64; BANDS]| [r[0] * h[0], r[1] * h[1], r[2] * h[2]];
         let lights_h: Vec<[f64; BANDS]> = lit.illuminance.iter().map(|e| e.map(over_pi)).collect();
         let sky_h: Vec<[f64; BANDS]> = match &sky_lit {
-            Some(s) => s.illuminance.iter().map(|&e| [over_pi(e); BANDS]).collect(),
+            Some(s) => s.illuminance.iter().map(|e| e.map(over_pi)).collect(),
             None => vec![[0.0; BANDS]; mesh.elements.len()],
         };
         let direct: Vec<[f64; BANDS]> = lights_h

@@ -316,7 +316,7 @@ impl Settings {
             link_tolerance: request.link_tolerance,
             link_samples: request.visibility_samples.unwrap_or(preset.link_samples),
             light_samples: request.light_samples.unwrap_or(preset.light_samples),
-            sky: request.sky,
+            sky: request.sky.clone(),
             sky_samples: request.sky_samples.unwrap_or(preset.sky_samples),
             irradiance: request.irradiance,
             save_links: request.save_links,
@@ -337,7 +337,7 @@ impl Settings {
 
     /// The sky lighting the scene (`--sky`), if any.
     pub fn sky(&self) -> Option<direct::sky::Sky> {
-        self.sky
+        self.sky.clone()
     }
 
     /// The hierarchical transport's link tolerance: `--link-tolerance`, else derived from

@@ -26,6 +26,7 @@
 //!
 //! It is not the radiosity solver and knows nothing of form factors, links or presets.
 
+pub mod envmap;
 pub mod sky;
 
 use glam::{DVec2, DVec3};

@@ -238,6 +238,14 @@ pub struct Done {
 /// report included, stays byte for byte (and the output location is what failed).
 pub fn run<E: Events>(job: &Job, events: &E) -> Result<Done, Failure> {
     let started = Instant::now();
+    let with_map;
+    let job = match load_sky_map(job)? {
+        Some(loaded) => {
+            with_map = loaded;
+            &with_map
+        }
+        None => job,
+    };
     check_options(job)?;
     let plan = Plan::new(job)?;
     recover_interrupted_outputs(&plan.files, events)?;
@@ -449,6 +457,29 @@ fn bake_and_write<E: Events>(
 }
 
 /// The options no parser checks: refused before any work.
+/// `--sky map:FILE`: reads the map before any other work (a missing or unreadable file is
+/// refused in one line naming it) and returns the job with it loaded; `None` for any other
+/// sky.
+fn load_sky_map(job: &Job) -> Result<Option<Job>, Failure> {
+    let Some(Sky {
+        model: SkyModel::Map { file, map: None },
+        ground_reflectance,
+    }) = &job.request.sky
+    else {
+        return Ok(None);
+    };
+    let map = bake_core::EnvironmentMap::load(file).map_err(|e| bad_input(anyhow!(e)))?;
+    let mut loaded = job.clone();
+    loaded.request.sky = Some(Sky {
+        model: SkyModel::Map {
+            file: file.clone(),
+            map: Some(std::sync::Arc::new(map)),
+        },
+        ground_reflectance: *ground_reflectance,
+    });
+    Ok(Some(loaded))
+}
+
 fn check_options(job: &Job) -> Result<(), Failure> {
     if let Exposure::Value(x) = job.exposure {
         if !(x.is_finite() && x >= 0.0) {

@@ -228,11 +228,11 @@ fn light_entries(scene: &importer::Scene, bake: &bake_core::Bake) -> Vec<LightEn
 fn sky_entry(bake: &bake_core::Bake) -> Option<SkyEntry> {
     let (sky, stats) = (bake.plan.settings().sky()?, bake.sky_stats?);
     Some(SkyEntry {
-        sky,
         horizontal_illuminance: sky.model.horizontal_illuminance(),
         ground_radiance: sky.ground_radiance(),
+        sky,
         stats,
-        delivered: [stats.flux / std::f64::consts::PI; 3],
+        delivered: stats.flux.map(|f| f / std::f64::consts::PI),
     })
 }
 

@@ -32,8 +32,9 @@ use std::path::Path;
 /// The version of this report's layout (2: `solver.condition`, `solver.iterations`, the
 /// `iterative` method and the `energy` object; 4: `lights`, `energy.delivered`, elements'
 /// `direct`; 5: elements' `h`; 6: `elements_included`, `element_summary`, the `accuracy`
-/// object and elements' `error`; 7: `sky` and elements' `sky`).
-pub const SCHEMA_VERSION: u32 = 7;
+/// object and elements' `error`; 7: `sky` and elements' `sky`; 8: `sky.model` `"map"` with
+/// `sky.file`, and `sky.delivered` and elements' `sky` per band, a map having colour).
+pub const SCHEMA_VERSION: u32 = 8;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Report {
