@@ -18,21 +18,17 @@
 
 use glam::DVec3;
 use std::f64::consts::PI;
-use std::path::Path;
 
 /// Rec. 709 luminance weights: what the sampling distribution weighs the bands by.
 const LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
-/// Most texels a map may have (16384 × 8192): refused above, before any allocation.
-pub const MAX_MAP_TEXELS: u64 = 16384 * 8192;
+/// Most texels a map may have (16384 × 8192): the importer refuses a larger file before
+/// decoding it.
+pub use scene::MAX_SKY_MAP_TEXELS as MAX_MAP_TEXELS;
 
 /// A map that cannot be a sky.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MapError {
-    #[error("cannot read the sky map {file}: {message}")]
-    Read { file: String, message: String },
-    #[error("the sky map {file} is not .hdr or .exr")]
-    Format { file: String },
     #[error("the sky map {file} is {width} × {height}: expected an equirectangular image, twice as wide as high, with at most {MAX_MAP_TEXELS} texels")]
     Size {
         file: String,
@@ -110,67 +106,6 @@ impl EnvironmentMap {
             rows,
             columns,
         })
-    }
-
-    /// Reads a Radiance `.hdr` (RGBE) or OpenEXR `.exr` file (its first RGB(A) layer).
-    pub fn load(path: &Path) -> Result<EnvironmentMap, MapError> {
-        let file = path.display().to_string();
-        let unreadable = |message: String| MapError::Read {
-            file: file.clone(),
-            message,
-        };
-        let extension = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase);
-        let (width, height, texels) = match extension.as_deref() {
-            Some("hdr") => {
-                let reader = image::ImageReader::open(path)
-                    .map_err(|e| unreadable(e.to_string()))?
-                    .with_guessed_format()
-                    .map_err(|e| unreadable(e.to_string()))?;
-                let (w, h) = reader
-                    .into_dimensions()
-                    .map_err(|e| unreadable(e.to_string()))?;
-                check_size(&file, w as u64, h as u64)?;
-                let image = image::ImageReader::open(path)
-                    .map_err(|e| unreadable(e.to_string()))?
-                    .with_guessed_format()
-                    .map_err(|e| unreadable(e.to_string()))?
-                    .decode()
-                    .map_err(|e| unreadable(e.to_string()))?
-                    .to_rgb32f();
-                let texels = image.pixels().map(|p| p.0).collect();
-                (w as usize, h as usize, texels)
-            }
-            Some("exr") => {
-                use exr::prelude::*;
-                let image = read_first_rgba_layer_from_file(
-                    path,
-                    |size: Vec2<usize>, _: &RgbaChannels| {
-                        let texels = if check_size("", size.0 as u64, size.1 as u64).is_ok() {
-                            vec![[0f32; 3]; size.0 * size.1]
-                        } else {
-                            Vec::new()
-                        };
-                        (size.0, size.1, texels)
-                    },
-                    |(w, _, texels): &mut (usize, usize, Vec<[f32; 3]>),
-                     at: Vec2<usize>,
-                     (r, g, b, _): (f32, f32, f32, f32)| {
-                        if let Some(t) = texels.get_mut(at.1 * *w + at.0) {
-                            *t = [r, g, b];
-                        }
-                    },
-                )
-                .map_err(|e| unreadable(e.to_string()))?;
-                let (w, h, texels) = image.layer_data.channel_data.pixels;
-                check_size(&file, w as u64, h as u64)?;
-                (w, h, texels)
-            }
-            _ => return Err(MapError::Format { file }),
-        };
-        EnvironmentMap::from_texels(&file, width, height, texels)
     }
 
     pub fn width(&self) -> usize {
@@ -282,17 +217,6 @@ impl EnvironmentMap {
 }
 
 /// The size checks of [`EnvironmentMap::from_texels`], before the texels are read.
-fn check_size(file: &str, width: u64, height: u64) -> Result<(), MapError> {
-    if width == 0 || width != 2 * height || width * height > MAX_MAP_TEXELS {
-        return Err(MapError::Size {
-            file: file.to_string(),
-            width,
-            height,
-        });
-    }
-    Ok(())
-}
-
 fn luminance(t: &[f32; 3]) -> f64 {
     (0..3).map(|b| LUMINANCE[b] * f64::from(t[b])).sum()
 }
@@ -452,53 +376,6 @@ mod tests {
         );
     }
 
-    /// The same texels written as `.hdr` (RGBE: 8-bit mantissas) and `.exr` (32-bit floats)
-    /// come back in place: row 0 at the top, column 0 at the left.
-    #[test]
-    fn hdr_and_exr_files_load_in_place() {
-        let (w, h) = (8usize, 4usize);
-        let value = |c: usize, r: usize| [1.0 + c as f32, 0.5 + r as f32, 0.25];
-        let dir = std::env::temp_dir().join(format!("bake-envmap-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).expect("a temporary directory");
-        let exr_path = dir.join("sky.exr");
-        exr::prelude::write_rgb_file(&exr_path, w, h, |c, r| {
-            let [a, b, d] = value(c, r);
-            (a, b, d)
-        })
-        .expect("write the EXR");
-        let hdr_path = dir.join("sky.hdr");
-        let pixels: Vec<image::Rgb<f32>> = (0..w * h)
-            .map(|k| image::Rgb(value(k % w, k / w)))
-            .collect();
-        let file = std::fs::File::create(&hdr_path).expect("create the HDR");
-        image::codecs::hdr::HdrEncoder::new(file)
-            .encode(&pixels, w, h)
-            .expect("write the HDR");
-        for (path, tolerance) in [(&exr_path, 0.0), (&hdr_path, 1.0 / 128.0)] {
-            let map = EnvironmentMap::load(path).expect("load the map");
-            assert_eq!((map.width(), map.height()), (w, h));
-            for r in 0..h {
-                for c in 0..w {
-                    let d = EnvironmentMap::direction(
-                        (c as f64 + 0.5) / w as f64,
-                        (r as f64 + 0.5) / h as f64,
-                    );
-                    let got = map.radiance(d);
-                    for (b, expected) in value(c, r).into_iter().enumerate() {
-                        let expected = f64::from(expected);
-                        assert!(
-                            (got[b] - expected).abs() <= tolerance * expected,
-                            "{}: ({c}, {r}) band {b}: {} against {expected}",
-                            path.display(),
-                            got[b]
-                        );
-                    }
-                }
-            }
-        }
-        std::fs::remove_dir_all(&dir).expect("clean up");
-    }
-
     #[test]
     fn maps_that_are_not_refused_with_their_name() {
         let bad = EnvironmentMap::from_texels("a.hdr", 10, 10, vec![[0.0; 3]; 100]);
@@ -512,10 +389,5 @@ mod tests {
                 ..
             })
         ));
-        let missing = EnvironmentMap::load(Path::new("/nonexistent/sky.exr"));
-        let message = missing.expect_err("no file").to_string();
-        assert!(message.contains("/nonexistent/sky.exr"), "{message}");
-        let format = EnvironmentMap::load(Path::new("sky.png")).expect_err("not a map");
-        assert!(format.to_string().contains("sky.png"));
     }
 }

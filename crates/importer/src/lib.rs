@@ -25,6 +25,7 @@ mod meshopt;
 mod obj_in;
 mod obj_texture;
 mod polygon;
+mod sky_map;
 pub mod texture;
 
 pub use files::MAX_FILE_BYTES;
@@ -34,6 +35,7 @@ pub use scene::{
     Layout, Light, LightKind, Material, Mesh, Node, Origin, Polygon, PolygonUv, Primitive, Scene,
     SceneRoots, Side, Texture, TextureRef, Transform, UvTriangle, Wrap,
 };
+pub use sky_map::load_sky_map;
 
 /// How [`load_with`] reads a scene's files.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

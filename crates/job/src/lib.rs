@@ -456,7 +456,6 @@ fn bake_and_write<E: Events>(
     Ok(Done { summary })
 }
 
-/// The options no parser checks: refused before any work.
 /// `--sky map:FILE`: reads the map before any other work (a missing or unreadable file is
 /// refused in one line naming it) and returns the job with it loaded; `None` for any other
 /// sky.
@@ -468,7 +467,14 @@ fn load_sky_map(job: &Job) -> Result<Option<Job>, Failure> {
     else {
         return Ok(None);
     };
-    let map = bake_core::EnvironmentMap::load(file).map_err(|e| bad_input(anyhow!(e)))?;
+    let image = importer::load_sky_map(file).map_err(|e| bad_input(anyhow!(e)))?;
+    let map = bake_core::EnvironmentMap::from_texels(
+        &file.display().to_string(),
+        image.width,
+        image.height,
+        image.texels,
+    )
+    .map_err(|e| bad_input(anyhow!(e)))?;
     let mut loaded = job.clone();
     loaded.request.sky = Some(Sky {
         model: SkyModel::Map {
@@ -480,6 +486,7 @@ fn load_sky_map(job: &Job) -> Result<Option<Job>, Failure> {
     Ok(Some(loaded))
 }
 
+/// The options no parser checks: refused before any work.
 fn check_options(job: &Job) -> Result<(), Failure> {
     if let Exposure::Value(x) = job.exposure {
         if !(x.is_finite() && x >= 0.0) {

@@ -469,3 +469,16 @@ pub fn bounds(polygons: &[Polygon]) -> (DVec3, DVec3) {
     }
     (lo, hi)
 }
+
+/// Most texels a sky map (`--sky map:FILE`) may have (16384 × 8192): a larger file is refused
+/// before it is decoded.
+pub const MAX_SKY_MAP_TEXELS: u64 = 16384 * 8192;
+
+/// A decoded equirectangular sky map: linear RGB radiance, row-major, row 0 at the zenith
+/// (the importer reads it; `bake-direct`'s `EnvironmentMap` samples it).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SkyImage {
+    pub width: usize,
+    pub height: usize,
+    pub texels: Vec<[f32; 3]>,
+}
