@@ -58,7 +58,7 @@ fn report() -> Report {
 fn report_holds_the_scene_and_results() {
     let fixture = sample_bake();
     let report = report();
-    assert_eq!(report.schema_version, 7);
+    assert_eq!(report.schema_version, 8);
     assert_eq!(report.input, "scenes/cube.gltf");
     assert_eq!(
         report.counts,
