@@ -10,7 +10,8 @@
 //! (`Occluders::can_shadow`); a polygon or element whose corners all project, from the
 //! probe, into one convex occluder is wholly hidden; elsewhere each quadrature point gets
 //! one shadow ray (and its corners one each), and a cell whose rays disagree is split in four, down to [`MAX_DEPTH`]
-//! levels, so a shadow's edge is resolved 64 times finer than the quadrature.
+//! levels or a cell of [`MIN_CELL`] sr, whichever comes first; the solid angle of the
+//! mixed cells left bounds the error ([`Gathered::unresolved`]).
 
 use crate::sh::{basis, Sh, COEFFICIENTS};
 use glam::DVec3;
@@ -37,6 +38,10 @@ pub struct Gathered {
     pub rays: u64,
     /// Elements that contributed.
     pub elements: u64,
+    /// Per band, `Σ Ω L` over the cells whose shadow rays disagreed but were too small to
+    /// split ([`MIN_CELL`]): no coefficient is off by more than this × max |Y_k| (≤ 0.63),
+    /// nor any irradiance by more than this, for want of resolving shadow edges.
+    pub unresolved: [f64; 3],
 }
 
 /// The scene a probe gathers from.
@@ -52,6 +57,8 @@ pub fn gather(p: DVec3, sources: &Sources) -> Gathered {
     let mut out = Gathered::default();
     let occ = sources.occluders;
     let tol = visibility::PLANE_TOLERANCE * occ.scene_scale();
+    // Polygons that hid something from `p`: most of what a room hides, its walls hide.
+    let mut blockers: Vec<usize> = Vec::new();
     for (k, grid) in sources.mesh.patches.iter().enumerate() {
         if grid.elements.is_empty() || k >= occ.len() {
             continue;
@@ -64,11 +71,13 @@ pub fn gather(p: DVec3, sources: &Sources) -> Gathered {
             continue;
         }
         let polygon = occ.polygon(k);
-        if (p - polygon.corners[0]).dot(polygon.normal) <= tol {
+        if (p - polygon.corners[0]).dot(polygon.normal) <= tol
+            || hidden_by_known(p, &polygon, occ, &blockers)
+        {
             continue;
         }
         let shadowable = occ.can_shadow(&polygon, &[p]);
-        if shadowable && hidden(p, &polygon, occ) {
+        if shadowable && hidden(p, &polygon, occ, &mut blockers) {
             continue;
         }
         for i in range {
@@ -77,8 +86,11 @@ pub fn gather(p: DVec3, sources: &Sources) -> Gathered {
                 continue;
             }
             let patch = Patch::element(sources.mesh, i);
+            if shadowable && hidden_by_known(p, &patch, occ, &blockers) {
+                continue;
+            }
             let rays = shadowable && occ.can_shadow(&patch, &[p]);
-            if rays && hidden(p, &patch, occ) {
+            if rays && hidden(p, &patch, occ, &mut blockers) {
                 continue;
             }
             let radiance = b.map(|v| v / PI);
@@ -88,21 +100,42 @@ pub fn gather(p: DVec3, sources: &Sources) -> Gathered {
     out
 }
 
+/// Whether one of `blockers` hides all of `patch` from `p` ([`covers`]).
+fn hidden_by_known(p: DVec3, patch: &Patch, occ: &Occluders, blockers: &[usize]) -> bool {
+    blockers.iter().any(|&b| covers(p, patch, occ, b))
+}
+
 /// Whether every corner of `patch` (pulled a hair toward its centroid and lifted off it) is
-/// seen from `p` through one and the same convex occluder without cut-outs: then so is all of
-/// it (the central projection of a convex polygon beyond a plane is the convex hull of its
-/// corners' projections).
-fn hidden(p: DVec3, patch: &Patch, occ: &Occluders) -> bool {
+/// seen from `p` through one and the same convex occluder without cut-outs (the first met
+/// toward its centroid): then so is all of it (the central projection of a convex polygon
+/// beyond a plane is the convex hull of its corners' projections). Remembers that occluder
+/// in `blockers`.
+fn hidden(p: DVec3, patch: &Patch, occ: &Occluders, blockers: &mut Vec<usize>) -> bool {
     let corners = patch.corners();
     let centroid = corners.iter().copied().sum::<DVec3>() / corners.len() as f64;
     let lift = patch.normal * occ.ray_offset();
     let Some(hit) = occ.first_hit(p, centroid + lift, patch.polygon()) else {
         return false;
     };
-    if occ.has_cutouts(hit.polygon) {
+    if !covers(p, patch, occ, hit.polygon) {
         return false;
     }
-    let blocker = occ.polygon(hit.polygon);
+    if !blockers.contains(&hit.polygon) {
+        blockers.push(hit.polygon);
+    }
+    true
+}
+
+/// Whether polygon `blocker` (without cut-outs, not the patch's own) hides all of `patch`
+/// from `p`: every corner's segment crosses its plane inside it.
+fn covers(p: DVec3, patch: &Patch, occ: &Occluders, blocker: usize) -> bool {
+    if blocker == patch.polygon() || occ.has_cutouts(blocker) {
+        return false;
+    }
+    let corners = patch.corners();
+    let centroid = corners.iter().copied().sum::<DVec3>() / corners.len() as f64;
+    let lift = patch.normal * occ.ray_offset();
+    let blocker = occ.polygon(blocker);
     let n = blocker.normal;
     let base = blocker.corners[0];
     let hp = (p - base).dot(n);
@@ -154,6 +187,7 @@ fn integrate(
         acc: [0.0; COEFFICIENTS],
         solid: 0.0,
         rays: 0,
+        unresolved: 0.0,
     };
     for su in 0..m {
         for sv in 0..m {
@@ -161,6 +195,9 @@ fn integrate(
         }
     }
     out.rays += quad.rays;
+    for (u, l) in out.unresolved.iter_mut().zip(radiance) {
+        *u += quad.unresolved * l;
+    }
     let (acc, solid) = (quad.acc, quad.solid);
     if solid == 0.0 {
         return;
@@ -180,6 +217,10 @@ fn integrate(
 /// shadow rays disagree (so a shadow's edge is found 2^MAX_DEPTH times finer).
 pub const MAX_DEPTH: u32 = 6;
 
+/// A cell whose rays disagree is not split once its solid angle (sr) is below this: about
+/// 0.6° × 0.6°. What is left unresolved is bounded ([`Gathered::unresolved`]).
+pub const MIN_CELL: f64 = 1e-3;
+
 /// One element's quadrature in progress.
 struct Quadrature<'a> {
     p: DVec3,
@@ -189,6 +230,8 @@ struct Quadrature<'a> {
     acc: [f64; COEFFICIENTS],
     solid: f64,
     rays: u64,
+    /// Solid angle of mixed cells left unsplit.
+    unresolved: f64,
 }
 
 impl Quadrature<'_> {
@@ -247,12 +290,17 @@ impl Quadrature<'_> {
                 }
             }
         }
-        if blocked > 0 && blocked < rays && depth < MAX_DEPTH {
+        let cell_solid: f64 = points.iter().map(|q| q.1).sum();
+        let mixed = blocked > 0 && blocked < rays;
+        if mixed && depth < MAX_DEPTH && cell_solid > MIN_CELL {
             let half = size * 0.5;
             for (a, b) in [(0.0, 0.0), (0.0, half), (half, 0.0), (half, half)] {
                 self.cell(u0 + a, v0 + b, half, depth + 1);
             }
             return;
+        }
+        if mixed {
+            self.unresolved += cell_solid;
         }
         for (d, w, seen) in points {
             if !seen {

@@ -126,6 +126,9 @@ pub struct Probe {
     /// Per band, the bound on the irradiance the L2 truncation misses in any direction
     /// ([`sh::truncation_bound`]).
     pub truncation: [f64; 3],
+    /// Per band, the bound on the irradiance that shadow edges left unresolved may add or
+    /// take away in any direction ([`gather::Gathered::unresolved`]).
+    pub shadow_bound: [f64; 3],
 }
 
 /// Every probe of a bake: the grid's points first (x fastest), then the added ones.
@@ -146,9 +149,23 @@ pub struct Summary {
     pub spacing: f64,
     /// Shadow rays the gather cast.
     pub rays: u64,
+    /// The largest [`Probe::shadow_bound`] over probes and bands, relative to that probe's
+    /// mean irradiance in the band (`π c₀ Y₀₀`): how much unresolved shadow edges may change
+    /// a probe's light.
+    pub shadow_bound_max: f64,
     /// Seconds placing, and gathering.
     pub place_seconds: f64,
     pub gather_seconds: f64,
+}
+
+/// `bound` over the mean irradiance `π c₀ Y₀₀` (0 where that is 0).
+fn relative(bound: f64, c0: f64) -> f64 {
+    let mean = c0 * 0.5 * std::f64::consts::PI.sqrt();
+    if mean > 0.0 {
+        bound / mean
+    } else {
+        0.0
+    }
 }
 
 /// Places probes (the grid `probes` asks for over the polygons' bounds, then `extra` points)
@@ -210,6 +227,7 @@ pub fn bake(
                     valid: false,
                     sh: [[0.0; 3]; sh::COEFFICIENTS],
                     truncation: [0.0; 3],
+                    shadow_bound: [0.0; 3],
                 };
                 return (probe, 0);
             }
@@ -220,6 +238,7 @@ pub fn bake(
                 valid: true,
                 sh: g.sh,
                 truncation: sh::truncation_bound(&g.sh, g.square),
+                shadow_bound: g.unresolved,
             };
             (probe, g.rays)
         })
@@ -233,6 +252,10 @@ pub fn bake(
         moved: probes.iter().filter(|p| p.moved).count() as u64,
         spacing,
         rays,
+        shadow_bound_max: probes
+            .iter()
+            .flat_map(|p| (0..3).map(move |b| relative(p.shadow_bound[b], p.sh[0][b])))
+            .fold(0.0, f64::max),
         place_seconds,
         gather_seconds,
     };

@@ -225,7 +225,9 @@ fn gather_matches_the_brute_force_with_and_without_an_occluder() {
                     reference[k][band],
                     diff / scale
                 );
-                assert!(diff < 2.5e-4 * scale, "c{k} band {band}");
+                // Quadrature, and at most 0.63 (max |Y_k|) of the unresolved shadow edges.
+                let allowed = 2.5e-4 * scale + 0.63 * g.unresolved[band];
+                assert!(diff < allowed, "c{k} band {band}: {diff} > {allowed}");
             }
         }
         let bound = sh::truncation_bound(&g.sh, g.square);
@@ -241,7 +243,10 @@ fn gather_matches_the_brute_force_with_and_without_an_occluder() {
                     100.0 * err / exact,
                     100.0 * bound[band] / exact
                 );
-                assert!(err <= bound[band] + 2e-3 * exact, "{axis} band {band}");
+                assert!(
+                    err <= bound[band] + g.unresolved[band] + 2e-3 * exact,
+                    "{axis} band {band}"
+                );
             }
         }
     }
