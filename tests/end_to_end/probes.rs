@@ -282,3 +282,79 @@ fn bad_probe_options_are_refused() {
         assert!(!out.exists());
     }
 }
+
+/// Two rooms joined by a doorway in a 0.2 m partition (x 3.9–4.1; the doorway z 1.5–2.5,
+/// y < 2), probes every 8/17 m, so that a column of grid points (x = 4) lies inside the
+/// partition: those, and points too near the floor, are moved or invalid, and no valid probe is inside the partition or nearer a surface
+/// than a quarter spacing (checked here on the fixture's stated geometry, not with the
+/// probes' rays).
+#[test]
+fn probes_in_or_near_walls_are_moved_or_invalid() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("rooms.gltf");
+    let report_path = dir.path().join("report.json");
+    bake([
+        fixture("two-rooms.gltf").as_os_str(),
+        out.as_os_str(),
+        "--subdiv".as_ref(),
+        "2".as_ref(),
+        "--probes".as_ref(),
+        "grid:0.4706".as_ref(),
+        "--target".as_ref(),
+        "vertex".as_ref(),
+        "--report".as_ref(),
+        report_path.as_os_str(),
+        "--quiet".as_ref(),
+    ])
+    .success();
+    let summary = bake_job::report::read_report(&report_path)
+        .expect("report")
+        .probes
+        .expect("probes");
+    let (ext, positions, _, valid) = probes_of(&out);
+    assert_eq!(ext["grid"]["counts"], serde_json::json!([17, 6, 9]));
+    assert_eq!(summary.count, 918);
+    assert!(summary.moved > 100, "{summary:?}");
+    let origin = [0, 1, 2].map(|k| ext["grid"]["origin"][k].as_f64().expect("origin"));
+    let mut inside = 0;
+    for i in (0..918).filter(|i| i % 17 == 8) {
+        let grid = [
+            origin[0] + 8.0 * 0.4706,
+            origin[1] + (i / 17 % 6) as f64 * 0.4706,
+        ];
+        let z = origin[2] + (i / 102) as f64 * 0.4706;
+        assert!((grid[0] - 4.0).abs() < 1e-9, "{grid:?}");
+        if grid[1] < 2.0 && (1.5..=2.5).contains(&z) {
+            continue;
+        }
+        inside += 1;
+        let moved = (positions[3 * i] - 4.0).abs() > 1e-6;
+        assert!(valid[i] == 0.0 || moved, "probe {i} stays in the partition");
+    }
+    assert!(inside > 30, "{inside}");
+    // A quarter spacing along the check's 64 rays: at least 0.9 of it straight to the
+    // surface (the rays' directions are up to ~25° from its normal).
+    let clearance = 0.9 * 0.4706 / 4.0;
+    for (i, &v) in valid.iter().enumerate() {
+        if v == 0.0 {
+            continue;
+        }
+        let p = [0, 1, 2].map(|k| positions[3 * i + k]);
+        // In the doorway's cross-section, how far from its jambs and lintel.
+        let opening = (p[1] < 2.0 && (1.5..=2.5).contains(&p[2]))
+            .then(|| (p[2] - 1.5).min(2.5 - p[2]).min(2.0 - p[1]));
+        let slab = (p[0] - 4.1).max(3.9 - p[0]);
+        let to_partition = match opening {
+            Some(edge) if slab <= 0.0 => edge,
+            Some(edge) => slab.hypot(edge),
+            None => slab,
+        };
+        let to_room = [p[0], 8.0 - p[0], p[1], 2.5 - p[1], p[2], 4.0 - p[2]]
+            .into_iter()
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            to_partition >= clearance && to_room >= clearance,
+            "valid probe {i} at {p:?}: {to_partition} from the partition, {to_room} from the room"
+        );
+    }
+}
