@@ -251,18 +251,18 @@ fn cube_probes_match_a_brute_force_and_both_outputs_carry_them() {
     }
 }
 
+/// Bakes fixture `name` into `out` with `args` (quietly); the run.
+fn bake_fixture(name: &str, out: &Path, args: &[&str]) -> crate::common::Run {
+    let mut all = vec![fixture(name).into_os_string(), out.as_os_str().to_owned()];
+    all.extend(args.iter().map(std::ffi::OsString::from));
+    bake(all)
+}
+
 #[test]
 fn probes_off_writes_no_extension() {
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("cube.gltf");
-    bake([
-        fixture("cube.gltf").as_os_str(),
-        out.as_os_str(),
-        "--subdiv".as_ref(),
-        "3".as_ref(),
-        "--quiet".as_ref(),
-    ])
-    .success();
+    bake_fixture("cube.gltf", &out, &["--subdiv", "3", "--quiet"]).success();
     let text = std::fs::read_to_string(&out).expect("read glTF");
     assert!(!text.contains("BAKE_irradiance_probes"));
 }
@@ -272,12 +272,7 @@ fn bad_probe_options_are_refused() {
     for bad in ["grid:0", "grid:-1", "grid:x", "on"] {
         let dir = tempfile::tempdir().expect("tempdir");
         let out = dir.path().join("cube.gltf");
-        let run = bake([
-            fixture("cube.gltf").as_os_str(),
-            out.as_os_str(),
-            "--probes".as_ref(),
-            bad.as_ref(),
-        ]);
+        let run = bake_fixture("cube.gltf", &out, &["--probes", bad]);
         assert_eq!(run.code, Some(2), "{bad}: {run:?}");
         assert!(!out.exists());
     }
@@ -285,27 +280,30 @@ fn bad_probe_options_are_refused() {
 
 /// Two rooms joined by a doorway in a 0.2 m partition (x 3.9–4.1; the doorway z 1.5–2.5,
 /// y < 2), probes every 8/17 m, so that a column of grid points (x = 4) lies inside the
-/// partition: those, and points too near the floor, are moved or invalid, and no valid probe is inside the partition or nearer a surface
-/// than a quarter spacing (checked here on the fixture's stated geometry, not with the
+/// partition: those, and points too near the floor, are moved or invalid, and no valid
+/// probe is inside the partition or nearer a surface than a quarter spacing (checked here on the fixture's stated geometry, not with the
 /// probes' rays).
 #[test]
 fn probes_in_or_near_walls_are_moved_or_invalid() {
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("rooms.gltf");
     let report_path = dir.path().join("report.json");
-    bake([
-        fixture("two-rooms.gltf").as_os_str(),
-        out.as_os_str(),
-        "--subdiv".as_ref(),
-        "2".as_ref(),
-        "--probes".as_ref(),
-        "grid:0.4706".as_ref(),
-        "--target".as_ref(),
-        "vertex".as_ref(),
-        "--report".as_ref(),
-        report_path.as_os_str(),
-        "--quiet".as_ref(),
-    ])
+    let report_arg = report_path.to_str().expect("a UTF-8 temporary path");
+    bake_fixture(
+        "two-rooms.gltf",
+        &out,
+        &[
+            "--subdiv",
+            "2",
+            "--probes",
+            "grid:0.4706",
+            "--target",
+            "vertex",
+            "--report",
+            report_arg,
+            "--quiet",
+        ],
+    )
     .success();
     let summary = bake_job::report::read_report(&report_path)
         .expect("report")
