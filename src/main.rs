@@ -6,9 +6,9 @@ mod bars;
 mod preview_cli;
 
 use bake_job::{
-    ContourOptions, ElementsIncluded, EstimatorKind, Exposure, Job, LightmapOptions, Quality,
-    Request, Shading, Sky, SkyModel, SolverKind, Subdivision, Target, TransportKind, UvMode,
-    DEFAULT_GROUND_REFLECTANCE, MAX_SKY_SAMPLES,
+    ContourOptions, ElementsIncluded, EstimatorKind, Exposure, Job, LightmapOptions, Probes,
+    Quality, Request, Shading, Sky, SkyModel, SolverKind, Subdivision, Target, TransportKind,
+    UvMode, DEFAULT_GROUND_REFLECTANCE, MAX_SKY_SAMPLES,
 };
 use clap::builder::TypedValueParser;
 use clap::{CommandFactory, Parser, ValueEnum};
@@ -160,6 +160,15 @@ pub struct Cli {
     /// use them for specular highlights only.
     #[arg(long, help_heading = "Lights")]
     pub keep_lights: bool,
+    /// Light probes: off, auto (a grid at the scene's diagonal / 16) or grid:SPACING.
+    ///
+    /// Probes on a grid over the scene's bounds, moved out of geometry (or flagged invalid),
+    /// each with the incident radiance from the baked surfaces as spherical harmonics up to
+    /// L2, written as the BAKE_irradiance_probes extension on every output scene. Punctual
+    /// lights and the sky are not in them: the renderer draws those. See docs/probes.md.
+    #[arg(long, value_name = "auto|off|grid:SPACING", default_value = "off",
+          value_parser = parse_probes, help_heading = "Lights")]
+    pub probes: Probes,
 
     // ---- Lightmap ----
     /// Lightmap texel size in world units (default: the scene's bounding-box diagonal / 256).
@@ -459,6 +468,7 @@ impl Cli {
             report_elements: self.report_elements,
             save_links: self.save_links.clone(),
             allow_outside_paths: self.allow_outside_paths,
+            probes: self.probes,
         }
     }
 }
@@ -482,6 +492,10 @@ fn parse_positive(text: &str) -> Result<f64, String> {
 }
 
 /// `--sky`: `uniform:L` or `overcast:Lz`.
+fn parse_probes(text: &str) -> Result<Probes, String> {
+    text.parse::<Probes>().map_err(|e| e.to_string())
+}
+
 fn parse_sky(text: &str) -> Result<SkyModel, String> {
     text.parse::<SkyModel>().map_err(|e| e.to_string())
 }

@@ -327,6 +327,12 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     }
 }
 
+/// The scene's polygons as occluders, alpha cut-outs included, as the bake's stages see
+/// them: for stages after the bake that cast rays into the scene (light probes).
+pub fn occluders(scene: &Scene) -> Result<Occluders, BakeError> {
+    Ok(Occluders::new(&scene.polygons)?.with_cutouts(cutouts(scene)))
+}
+
 /// [`run`] with the transport `settings` plan, no fallback.
 fn run_refined(
     scene: &Scene,
@@ -335,7 +341,7 @@ fn run_refined(
 ) -> Result<Bake, BakeError> {
     // One tree of occluders for every solve of a refining bake (the polygons do not change).
     let lap = Instant::now();
-    let occluders = Occluders::new(&scene.polygons)?.with_cutouts(cutouts(scene));
+    let occluders = occluders(scene)?;
     let setup = lap.elapsed().as_secs_f64();
     // Smooth light on a small scene starts at refinement's budget instead of refining.
     let summary = scene_summary(scene, settings, None, &occluders)?;

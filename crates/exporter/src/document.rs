@@ -28,6 +28,7 @@ pub(crate) fn build(
     scene: &Scene,
     node_meshes: &[NodeMesh],
     bin_uri: Option<String>,
+    probes: Option<&crate::ProbeGrid>,
 ) -> Result<(json::Root, Vec<u8>), ExportError> {
     let layout = &scene.layout;
     check_layout(layout)?;
@@ -41,6 +42,9 @@ pub(crate) fn build(
     }
     if assets.uses_transform {
         writer.use_extension(TEXTURE_TRANSFORM_EXTENSION);
+    }
+    if let Some(probes) = probes {
+        crate::probes::add(&mut writer, probes)?;
     }
     Ok(writer.finish(bin_uri))
 }
@@ -264,12 +268,23 @@ impl DocumentWriter {
         values: &[[f32; 3]],
         with_bounds: bool,
     ) -> Index<json::Accessor> {
+        self.add_vec3_on(values, with_bounds, Some(Target::ArrayBuffer))
+    }
+
+    /// [`DocumentWriter::add_vec3`] on a view with this target (`None`: data that is no
+    /// vertex attribute).
+    pub(crate) fn add_vec3_on(
+        &mut self,
+        values: &[[f32; 3]],
+        with_bounds: bool,
+        target: Option<Target>,
+    ) -> Index<json::Accessor> {
         let bytes: Vec<u8> = values
             .iter()
             .flatten()
             .flat_map(|v| v.to_le_bytes())
             .collect();
-        let view = self.add_view(&bytes, Target::ArrayBuffer);
+        let view = self.push_view(&bytes, target);
         let (min, max) = if with_bounds {
             let (min, max) = bounds(values);
             (Some(json_vec3(min)), Some(json_vec3(max)))
@@ -339,6 +354,16 @@ impl DocumentWriter {
 
     /// Appends `bytes` at a 4-byte aligned offset as a new buffer view of buffer 0.
     pub(crate) fn add_view(&mut self, bytes: &[u8], target: Target) -> Index<json::buffer::View> {
+        self.push_view(bytes, Some(target))
+    }
+
+    /// [`DocumentWriter::add_view`], the target optional (`None`: data that is no vertex
+    /// attribute or index).
+    pub(crate) fn push_view(
+        &mut self,
+        bytes: &[u8],
+        target: Option<Target>,
+    ) -> Index<json::buffer::View> {
         pad_to_four(&mut self.bin);
         let offset = self.bin.len();
         self.bin.extend_from_slice(bytes);
@@ -348,7 +373,7 @@ impl DocumentWriter {
             byte_offset: Some(USize64::from(offset)),
             byte_stride: None,
             name: None,
-            target: Some(Checked::Valid(target)),
+            target: target.map(Checked::Valid),
             extensions: None,
             extras: Default::default(),
         })

@@ -25,6 +25,7 @@ mod files;
 mod geometry;
 mod journal;
 mod lightmap_gltf;
+mod probes;
 mod same_file;
 
 pub use files::{
@@ -32,6 +33,7 @@ pub use files::{
     FileOps, OutputSet, RealFiles,
 };
 pub use journal::{recover_interrupted_commits, Recovered};
+pub use probes::{ProbeGrid, PROBES_EXTENSION, PROBE_COEFFICIENTS};
 pub use same_file::{check_distinct, SameFile};
 
 pub use baked_texture::{
@@ -65,6 +67,8 @@ pub struct Bake<'a> {
     pub shading: Shading,
     /// `COLOR_0 = clamp(value × exposure, 0, 1)`.
     pub exposure: f64,
+    /// Light probes, written as the `BAKE_irradiance_probes` extension on every scene.
+    pub probes: Option<&'a ProbeGrid<'a>>,
 }
 
 /// Whether some material of `scene` keeps its base-colour texture in the vertex bake (then
@@ -158,7 +162,7 @@ pub fn stage_gltf(set: &mut OutputSet, path: &Path, bake: &Bake) -> Result<(), E
         files::OutputFormat::Gltf => {
             let bin_path = files::bin_path_for(path)?;
             let bin_uri = files::uri_for_file_name(&bin_path);
-            let (root, bin) = document::build(bake.scene, &primitives, Some(bin_uri))?;
+            let (root, bin) = document::build(bake.scene, &primitives, Some(bin_uri), bake.probes)?;
             let json = encode_json(&root)?;
             if !bin.is_empty() {
                 set.stage(&bin_path, &bin)?;
@@ -166,7 +170,7 @@ pub fn stage_gltf(set: &mut OutputSet, path: &Path, bake: &Bake) -> Result<(), E
             set.stage(path, &json)
         }
         files::OutputFormat::Glb => {
-            let (root, bin) = document::build(bake.scene, &primitives, None)?;
+            let (root, bin) = document::build(bake.scene, &primitives, None, bake.probes)?;
             let glb = encode_glb(&root, &bin)?;
             set.stage(path, &glb)
         }

@@ -137,6 +137,8 @@ pub struct LightmapBake<'a> {
     /// recorded in the extras so a viewer (`bake preview`) shows the lightmap bake as bright
     /// as the vertex bake: displayed value = clamp((e + ρ H) × exposure, 0, 1).
     pub exposure: f64,
+    /// Light probes, written as the `BAKE_irradiance_probes` extension on every scene.
+    pub probes: Option<&'a crate::ProbeGrid<'a>>,
 }
 
 /// What was written.
@@ -225,6 +227,9 @@ pub fn stage_lightmap_gltf(
         add_lights(&mut writer.root, scene);
     }
     writer.root.extensions_used.push(LIGHTMAP_EXTENSION.into());
+    if let Some(probes) = bake.probes {
+        crate::probes::add(&mut writer, probes)?;
+    }
     if assets.uses_transform {
         writer.use_extension(TEXTURE_TRANSFORM_EXTENSION);
     }

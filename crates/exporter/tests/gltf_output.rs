@@ -24,6 +24,7 @@ fn bake(fixture: &Fixture, shading: Shading) -> Bake<'_> {
         error: None,
         shading,
         exposure: EXPOSURE,
+        probes: None,
     }
 }
 

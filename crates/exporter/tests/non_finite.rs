@@ -17,6 +17,7 @@ fn bake<'a>(fixture: &'a Fixture, radiosity: &'a [[f64; 3]], shading: Shading) -
         error: None,
         shading,
         exposure: 1.0,
+        probes: None,
     }
 }
 

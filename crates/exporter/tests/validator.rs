@@ -33,6 +33,7 @@ fn outputs_validate_without_errors_or_warnings() {
             error: None,
             shading,
             exposure: 0.9,
+            probes: None,
         };
         for extension in ["gltf", "glb"] {
             let path = dir.path().join(format!("{tag} bake.{extension}"));

@@ -33,6 +33,7 @@ pub use lightmap::{UvMode, DEFAULT_MAX_ATLASES, DEFAULT_MAX_SIZE};
 pub use mesher::{Shading, Subdivision};
 /// The software rasterizer behind `bake preview`.
 pub use preview;
+pub use probes::Probes;
 pub use report::ElementsIncluded;
 
 /// Above this many elements a report lists no elements unless `--report-elements all` asks
@@ -130,6 +131,9 @@ pub struct Job {
     pub save_links: Option<PathBuf>,
     /// Let the input name files outside its own directory.
     pub allow_outside_paths: bool,
+    /// Light probes (`--probes`): none, or a grid whose probes are written as the
+    /// `BAKE_irradiance_probes` extension of every glTF output (docs/probes.md).
+    pub probes: Probes,
 }
 
 /// What a bake tells its caller while it runs: progress (bars) and warnings as they arise.
@@ -393,6 +397,13 @@ fn bake_and_write<E: Events>(
     so_far.stages.extend(&bake);
     warnings.extend(&bake.warnings);
 
+    // 4b. Light probes from the solved b (`--probes`).
+    let lap = Instant::now();
+    let probe_set = bake_probes(job, &scene, &bake, events)?;
+    if probe_set.is_some() {
+        so_far.stages.record("probes", lap);
+    }
+
     // 5. Lightmap: irradiance H = F b per element (ρ = 0 elements receive light too).
     so_far.stage = "lightmap";
     let mut lap = Instant::now();
@@ -420,7 +431,16 @@ fn bake_and_write<E: Events>(
     let exposure = exposure(job, &bake);
     exporter::remove_stale_temporaries(&plan.files);
     events.start("writing", 0);
-    let staged = outputs::stage_bakes(job, &scene, &bake, lightmap.as_ref(), exposure);
+    let probe_arrays = probe_set.as_ref().map(outputs::ProbeArrays::of);
+    let probe_grid = probe_arrays.as_ref().map(|a| a.grid(exposure));
+    let staged = outputs::stage_bakes(
+        job,
+        &scene,
+        &bake,
+        lightmap.as_ref(),
+        exposure,
+        probe_grid.as_ref(),
+    );
     events.finish();
     let (vertex_files, lightmap_files) = staged?;
     so_far.stages.record("export", lap);
@@ -439,6 +459,7 @@ fn bake_and_write<E: Events>(
             bake: &bake,
             lightmap: lightmap.as_ref(),
             exposure,
+            probes: probe_set.as_ref().map(|p| &p.summary),
         };
         let stages = std::mem::take(&mut so_far.stages);
         let report = baked.report(path, &mut warnings, stages, started)?;
@@ -484,6 +505,33 @@ fn load_sky_map(job: &Job) -> Result<Option<Job>, Failure> {
         ground_reflectance: *ground_reflectance,
     });
     Ok(Some(loaded))
+}
+
+/// The probes `job.probes` asks for, from the bake's b, with a progress step; `None` when off.
+fn bake_probes<E: Events>(
+    job: &Job,
+    scene: &importer::Scene,
+    bake: &bake_core::Bake,
+    events: &E,
+) -> Result<Option<probes::ProbeSet>, Failure> {
+    if job.probes == Probes::Off {
+        return Ok(None);
+    }
+    events.start("probes", 0);
+    let occluders = bake_core::occluders(scene).map_err(|e| internal(anyhow!(e)))?;
+    let placed = probes::bake(
+        job.probes,
+        &[],
+        &bake.mesh,
+        &bake.solution.b,
+        &occluders,
+        scene::bounds(&scene.polygons),
+    );
+    events.finish();
+    placed.map_err(|e| match e {
+        probes::ProbeError::Radiosity(..) => internal(anyhow!(e)),
+        _ => bad_input(anyhow!(e)),
+    })
 }
 
 /// The options no parser checks: refused before any work.

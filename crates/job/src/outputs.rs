@@ -133,13 +133,46 @@ impl Plan {
     }
 }
 
-/// The vertex bake's and the lightmap bake's files, staged (written to temporaries).
+/// A probe set as the arrays the exporter writes.
+pub(crate) struct ProbeArrays {
+    grid: probes::Grid,
+    positions: Vec<[f64; 3]>,
+    coefficients: Vec<[[f64; 3]; exporter::PROBE_COEFFICIENTS]>,
+    valid: Vec<bool>,
+}
+
+impl ProbeArrays {
+    pub fn of(set: &probes::ProbeSet) -> ProbeArrays {
+        ProbeArrays {
+            grid: set.grid,
+            positions: set.probes.iter().map(|p| p.position.to_array()).collect(),
+            coefficients: set.probes.iter().map(|p| p.sh).collect(),
+            valid: set.probes.iter().map(|p| p.valid).collect(),
+        }
+    }
+
+    pub fn grid(&self, exposure: f64) -> exporter::ProbeGrid<'_> {
+        exporter::ProbeGrid {
+            origin: self.grid.origin,
+            spacing: self.grid.spacing,
+            counts: self.grid.counts,
+            positions: &self.positions,
+            coefficients: &self.coefficients,
+            valid: &self.valid,
+            exposure,
+        }
+    }
+}
+
+/// The vertex bake's and the lightmap bake's files, staged (written to temporaries), with the
+/// probes (if any) on their scenes.
 pub(crate) fn stage_bakes(
     job: &Job,
     scene: &importer::Scene,
     bake: &bake_core::Bake,
     lightmap: Option<&lightmap::Lightmap>,
     exposure: f64,
+    probes: Option<&exporter::ProbeGrid>,
 ) -> Result<(exporter::OutputSet, exporter::OutputSet), Failure> {
     let errors: Vec<[f64; 3]> = bake.error.iter().map(|p| p.total()).collect();
     let vertex_bake = exporter::Bake {
@@ -150,6 +183,7 @@ pub(crate) fn stage_bakes(
         error: Some(&errors),
         shading: job.shading,
         exposure,
+        probes,
     };
     let mut vertex_files = exporter::OutputSet::new();
     if matches!(job.target, Target::Vertex | Target::Both) {
@@ -182,6 +216,7 @@ pub(crate) fn stage_bakes(
             lightmap: built,
             keep_lights: job.keep_lights,
             exposure,
+            probes,
         };
         exporter::stage_lightmap_gltf(&mut lightmap_files, &paths, &lightmap_bake)
             .with_context(|| format!("cannot write {}", paths.gltf.display()))

@@ -73,25 +73,12 @@ fn first_hit(polygons: &[Polygon], o: DVec3, d: DVec3) -> Option<(f64, &Polygon)
     best
 }
 
-/// Deterministic, roughly uniform directions (a Fibonacci sphere).
-fn directions(n: usize) -> Vec<DVec3> {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    (0..n)
-        .map(|k| {
-            let y = 1.0 - 2.0 * (k as f64 + 0.5) / n as f64;
-            let r = (1.0 - y * y).sqrt();
-            let phi = golden * k as f64;
-            DVec3::new(r * phi.cos(), y, r * phi.sin())
-        })
-        .collect()
-}
-
 /// From points inside room (i, j) (above the furniture, below the panels), every ray hits a
 /// surface first from the side it faces: nothing leaks out, nothing is seen from behind.
 fn assert_closed(scene: &Scene, rooms: Rooms, i: usize, j: usize) {
     let pitch = SIZE + office::WALL;
     let base = DVec3::new(i as f64 * pitch, 0.0, j as f64 * pitch);
-    let dirs = directions(400);
+    let dirs = probes::place::fibonacci(400);
     for (u, v) in [(0.5, 0.5), (0.2, 0.3), (0.8, 0.75), (0.1, 0.9)] {
         let o = base + DVec3::new(u * SIZE, 2.0, v * SIZE);
         for &d in &dirs {

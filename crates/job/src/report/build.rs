@@ -52,6 +52,7 @@ pub(crate) struct Baked<'a> {
     pub bake: &'a bake_core::Bake,
     pub lightmap: Option<&'a lightmap::Lightmap>,
     pub exposure: f64,
+    pub probes: Option<&'a probes::Summary>,
 }
 
 impl Baked<'_> {
@@ -103,6 +104,7 @@ impl Baked<'_> {
         report.escape = Some(bake.escape);
         report.accuracy = Some(bake.accuracy);
         report.refinement = Some(bake.refinement.clone());
+        report.probes = self.probes.copied();
         report.warnings = warnings.lines.clone();
         stages
             .timings

@@ -33,7 +33,7 @@ use std::path::Path;
 /// `iterative` method and the `energy` object; 4: `lights`, `energy.delivered`, elements'
 /// `direct`; 5: elements' `h`; 6: `elements_included`, `element_summary`, the `accuracy`
 /// object and elements' `error`; 7: `sky` and elements' `sky`; 8: `sky.model` `"map"` with
-/// `sky.file`, and `sky.delivered` and elements' `sky` per band, a map having colour).
+/// `sky.file`, `sky.delivered` and elements' `sky` per band (a map has colour), and `probes`).
 pub const SCHEMA_VERSION: u32 = 8;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -77,6 +77,10 @@ pub struct Report {
     /// What refinement below the element grid did (absent in older reports).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub refinement: Option<Refinement>,
+    /// What `--probes` did: probes placed, valid, moved, the spacing, rays, seconds (absent
+    /// without probes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probes: Option<probes::Summary>,
     pub warnings: Vec<String>,
     pub polygons: Vec<PolygonEntry>,
     /// Which per-element data follow (absent in older reports: all).
@@ -312,6 +316,7 @@ impl Report {
             sky: None,
             accuracy: None,
             refinement: None,
+            probes: None,
             warnings: scene.warnings.clone(),
             polygons: Report::polygons_from(scene),
             elements_included: ElementsIncluded::All,
