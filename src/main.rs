@@ -124,11 +124,13 @@ pub struct Cli {
     #[arg(long, value_name = "K", value_parser = clap::value_parser!(u32).range(1..=1024),
           help_heading = "Lights")]
     pub light_samples: Option<u32>,
-    /// A sky over the scene as a light source: uniform:L, overcast:Lz or map:FILE.
+    /// A sky over the scene as a light source: uniform:L, overcast:Lz, clear:Lz or map:FILE.
     ///
     /// uniform:L is the same radiance L in every direction above the horizon; overcast:Lz the
     /// CIE standard overcast sky, L(γ) = Lz (1 + 2 sin γ) / 3 at elevation γ (the horizon a
-    /// third of the zenith); map:FILE an equirectangular .hdr or .exr map over the whole
+    /// third of the zenith); clear:Lz the CIE standard clear sky (type 12) of zenith
+    /// luminance Lz around the sun of the scene's directional light (or --sun-direction),
+    /// the sun's own light being that light's; map:FILE an equirectangular .hdr or .exr map over the whole
     /// sphere (row 0 at the zenith, the middle column along +X, three quarters along +Z; its
     /// lower half is the ground). Radiance is in the bake's units (cd/m² when the lights are in
     /// candela and lux). +Y is up. The sky is what a ray reaches when it meets no surface at
@@ -136,6 +138,11 @@ pub struct Cli {
     /// nothing sees the ground (--ground-reflectance). See docs/lights.md, "Sky".
     #[arg(long, value_name = "MODEL:L", value_parser = parse_sky, help_heading = "Lights")]
     pub sky: Option<SkyModel>,
+    /// The direction toward the sun for --sky clear (x,y,z, +Y up; need not be unit).
+    ///
+    /// Without it the clear sky's sun is opposite the scene's first directional light.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_direction, help_heading = "Lights")]
+    pub sun_direction: Option<[f64; 3]>,
     /// Reflectance of the ground below the sky's horizon, in [0, 1].
     ///
     /// The ground has radiance R × E_h / π, E_h the sky's unobstructed horizontal
@@ -437,7 +444,14 @@ impl Cli {
             link_tolerance: self.link_tolerance,
             light_samples: self.light_samples,
             sky: self.sky.clone().map(|model| Sky {
-                model,
+                model: match model {
+                    SkyModel::Clear { zenith, map, .. } => SkyModel::Clear {
+                        zenith,
+                        sun: self.sun_direction,
+                        map,
+                    },
+                    other => other,
+                },
                 ground_reflectance: self.ground_reflectance,
             }),
             sky_samples: self.sky_samples,
@@ -498,6 +512,22 @@ fn parse_probes(text: &str) -> Result<Probes, String> {
 
 fn parse_sky(text: &str) -> Result<SkyModel, String> {
     text.parse::<SkyModel>().map_err(|e| e.to_string())
+}
+
+/// `--sun-direction`: three finite numbers, not all 0.
+fn parse_direction(text: &str) -> Result<[f64; 3], String> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|e| e.to_string()))
+        .collect::<Result<_, _>>()?;
+    match values[..] {
+        [x, y, z] if [x, y, z].iter().all(|v| v.is_finite()) && (x, y, z) != (0.0, 0.0, 0.0) => {
+            Ok([x, y, z])
+        }
+        _ => Err(format!(
+            "expected x,y,z: three finite numbers, not all 0; got {text:?}"
+        )),
+    }
 }
 
 /// `--ground-reflectance`: a number in [0, 1].

@@ -32,7 +32,8 @@ pub use settings::{
 pub use accuracy::Accuracy;
 pub use direct::envmap::EnvironmentMap;
 pub use direct::sky::{
-    Sky, SkyModel, SkyStats, DEFAULT_GROUND_REFLECTANCE, DEFAULT_SKY_SAMPLES, MAX_SKY_SAMPLES,
+    clear_sky_map, Sky, SkyError, SkyModel, SkyStats, DEFAULT_GROUND_REFLECTANCE,
+    DEFAULT_SKY_SAMPLES, MAX_SKY_SAMPLES,
 };
 pub use direct::LightStats;
 use form_factor::Estimator;

@@ -70,6 +70,77 @@ pub enum SkyModel {
         #[cfg_attr(feature = "serde", serde(skip))]
         map: Option<Arc<EnvironmentMap>>,
     },
+    /// The CIE standard clear sky (CIE S 011/E:2003 and ISO 15469 type 12: gradation
+    /// a = −1, b = −0.32; indicatrix c = 10, d = −3, e = 0.45; [`clear_sky`]) of zenith
+    /// luminance Lz with the sun toward `sun` (unit, above the horizon). Once the sun is
+    /// known (the scene's directional light, or `--sun-direction`) it is rendered into an
+    /// equirectangular map ([`clear_sky_map`], whose lower half is the ground R E_h / π) and
+    /// then lights the scene as a map does. The sun's own disc is not in it: that is the
+    /// directional light.
+    Clear {
+        zenith: f64,
+        sun: Option<[f64; 3]>,
+        #[cfg_attr(feature = "serde", serde(skip))]
+        map: Option<Arc<EnvironmentMap>>,
+    },
+}
+
+/// Gradation and indicatrix parameters of the CIE standard clear sky (type 12).
+const CLEAR: (f64, f64, f64, f64, f64) = (-1.0, -0.32, 10.0, -3.0, 0.45);
+
+/// The CIE standard clear sky's relative luminance `L / Lz` (CIE S 011/E:2003, type 12)
+/// toward a sky element at zenith angle `z`, `chi` from the sun, the sun at zenith angle
+/// `zs`: `f(χ) φ(Z) / (f(Zs) φ(0))` with the gradation `φ(Z) = 1 + a e^(b / cos Z)` (1 at the
+/// horizon) and the indicatrix `f(χ) = 1 + c (e^(dχ) − e^(dπ/2)) + e cos²χ`.
+pub fn clear_sky(z: f64, chi: f64, zs: f64) -> f64 {
+    let (a, b, c, d, e) = CLEAR;
+    let phi = |z: f64| {
+        let cos = z.cos();
+        if cos <= 0.0 {
+            1.0
+        } else {
+            1.0 + a * (b / cos).exp()
+        }
+    };
+    let f = |x: f64| 1.0 + c * ((d * x).exp() - (d * PI / 2.0).exp()) + e * x.cos().powi(2);
+    f(chi) * phi(z) / (f(zs) * phi(0.0))
+}
+
+/// Columns of the map a clear sky is rendered into (half as many rows): a texel spans
+/// 0.35°, against the circumsolar peak's e-folding width of 19° (1/|d| radians).
+pub const CLEAR_SKY_COLUMNS: usize = 1024;
+
+/// The clear sky of zenith luminance `zenith`, the sun toward the unit `sun` (y > 0),
+/// rendered at texel centres into a [`CLEAR_SKY_COLUMNS`]-wide equirectangular map; its
+/// lower half is the ground, of radiance `ground_reflectance × E_h / π` with `E_h` the
+/// rendered upper half's exact horizontal illuminance.
+pub fn clear_sky_map(
+    zenith: f64,
+    sun: DVec3,
+    ground_reflectance: f64,
+) -> Result<EnvironmentMap, crate::envmap::MapError> {
+    let (w, h) = (CLEAR_SKY_COLUMNS, CLEAR_SKY_COLUMNS / 2);
+    let zs = sun.y.clamp(-1.0, 1.0).acos();
+    let texel = |k: usize| {
+        let d = EnvironmentMap::direction(
+            ((k % w) as f64 + 0.5) / w as f64,
+            ((k / w) as f64 + 0.5) / h as f64,
+        );
+        (d.y > 0.0).then(|| {
+            let z = d.y.clamp(-1.0, 1.0).acos();
+            let chi = d.dot(sun).clamp(-1.0, 1.0).acos();
+            (zenith * clear_sky(z, chi, zs)) as f32
+        })
+    };
+    let mut texels: Vec<[f32; 3]> = (0..w * h).map(|k| [texel(k).unwrap_or(0.0); 3]).collect();
+    let sky = EnvironmentMap::from_texels("the clear sky", w, h, texels.clone())?;
+    let ground = (ground_reflectance * sky.unobstructed(DVec3::Y)[0] / PI) as f32;
+    for (k, t) in texels.iter_mut().enumerate() {
+        if texel(k).is_none() {
+            *t = [ground; 3];
+        }
+    }
+    EnvironmentMap::from_texels("the clear sky", w, h, texels)
 }
 
 /// A sky over the scene and the ground below its horizon.
@@ -85,8 +156,10 @@ pub struct Sky {
 /// A `--sky` value that is not a sky.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SkyError {
-    #[error("unknown sky {0:?}: expected uniform:L, overcast:Lz or map:FILE")]
+    #[error("unknown sky {0:?}: expected uniform:L, overcast:Lz, clear:Lz or map:FILE")]
     Unknown(String),
+    #[error("the clear sky needs the sun's direction above the horizon: a directional light (KHR_lights_punctual) in the scene, or --sun-direction x,y,z")]
+    NoSun,
     #[error("the sky map {0} was not loaded")]
     NotLoaded(String),
     #[error("the sky's radiance must be a finite number ≥ 0, got {0:?}")]
@@ -98,7 +171,8 @@ pub enum SkyError {
 impl std::str::FromStr for SkyModel {
     type Err = SkyError;
 
-    /// `uniform:L`, `overcast:Lz` or `map:FILE` (the file is read later, by the job).
+    /// `uniform:L`, `overcast:Lz`, `clear:Lz` or `map:FILE` (the file is read, and the clear
+    /// sky rendered, later, by the job).
     fn from_str(text: &str) -> Result<SkyModel, SkyError> {
         let (name, value) = text
             .split_once(':')
@@ -118,6 +192,11 @@ impl std::str::FromStr for SkyModel {
         match name.trim() {
             "uniform" => Ok(SkyModel::Uniform { radiance }),
             "overcast" => Ok(SkyModel::Overcast { zenith: radiance }),
+            "clear" => Ok(SkyModel::Clear {
+                zenith: radiance,
+                sun: None,
+                map: None,
+            }),
             _ => Err(SkyError::Unknown(text.to_string())),
         }
     }
@@ -130,7 +209,7 @@ impl SkyModel {
         match *self {
             SkyModel::Uniform { radiance } => radiance,
             SkyModel::Overcast { zenith } => zenith * (1.0 + 2.0 * sin_elevation) / 3.0,
-            SkyModel::Map { .. } => 0.0,
+            SkyModel::Map { .. } | SkyModel::Clear { .. } => 0.0,
         }
     }
 
@@ -141,10 +220,12 @@ impl SkyModel {
         match self {
             SkyModel::Uniform { radiance } => PI * radiance,
             SkyModel::Overcast { zenith } => 7.0 * PI * zenith / 9.0,
-            SkyModel::Map { map, .. } => map.as_ref().map_or(0.0, |m| {
-                let e = m.unobstructed(DVec3::Y);
-                0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2]
-            }),
+            SkyModel::Map { map, .. } | SkyModel::Clear { map, .. } => {
+                map.as_ref().map_or(0.0, |m| {
+                    let e = m.unobstructed(DVec3::Y);
+                    0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2]
+                })
+            }
         }
     }
 
@@ -157,7 +238,7 @@ impl SkyModel {
         let c = cos_tilt.clamp(-1.0, 1.0);
         let upper = PI * (1.0 + c) / 2.0;
         match *self {
-            SkyModel::Map { .. } => 0.0,
+            SkyModel::Map { .. } | SkyModel::Clear { .. } => 0.0,
             SkyModel::Uniform { radiance } => radiance * upper,
             SkyModel::Overcast { zenith } => {
                 let beta = c.acos();
@@ -172,7 +253,7 @@ impl Sky {
     /// The loaded map of a `map:` sky.
     pub fn map(&self) -> Option<&EnvironmentMap> {
         match &self.model {
-            SkyModel::Map { map, .. } => map.as_deref(),
+            SkyModel::Map { map, .. } | SkyModel::Clear { map, .. } => map.as_deref(),
             _ => None,
         }
     }
@@ -218,6 +299,12 @@ impl Sky {
                     return Err(SkyError::NotLoaded(file.display().to_string()));
                 }
                 0.0
+            }
+            SkyModel::Clear { zenith, map, .. } => {
+                if map.is_none() {
+                    return Err(SkyError::NoSun);
+                }
+                *zenith
             }
         };
         if !(r.is_finite() && r >= 0.0) {

@@ -382,6 +382,7 @@ fn bake_and_write<E: Events>(
     // 2.–4. Mesh, visibility, transport, solve: one bake, as every caller runs it.
     so_far.stage = "bake";
     let mut request = job.request.clone();
+    render_clear_sky(&mut request, &scene)?;
     request.irradiance = job.target != Target::Vertex || exporter::keeps_textures(&scene);
     request.save_links = job.save_links.is_some();
     let settings = bake_core::Settings::resolve(&request, &scene.polygons)
@@ -505,6 +506,48 @@ fn load_sky_map(job: &Job) -> Result<Option<Job>, Failure> {
         ground_reflectance: *ground_reflectance,
     });
     Ok(Some(loaded))
+}
+
+/// `--sky clear:Lz`: renders the clear sky around its sun — `--sun-direction`, else opposite
+/// the scene's first directional light — into the map it lights the scene with; refused in
+/// one line when there is no sun or it is not above the horizon.
+fn render_clear_sky(
+    request: &mut bake_core::Request,
+    scene: &importer::Scene,
+) -> Result<(), Failure> {
+    let Some(Sky {
+        model:
+            SkyModel::Clear {
+                zenith,
+                sun,
+                map: None,
+            },
+        ground_reflectance,
+    }) = &request.sky
+    else {
+        return Ok(());
+    };
+    let toward = sun.map(glam::DVec3::from_array).or_else(|| {
+        scene
+            .lights
+            .iter()
+            .find(|l| l.kind == scene::LightKind::Directional)
+            .map(|l| -l.direction)
+    });
+    let Some(toward) = toward.and_then(|d| d.try_normalize()).filter(|d| d.y > 0.0) else {
+        return Err(bad_input(anyhow!(bake_core::SkyError::NoSun)));
+    };
+    let map = bake_core::clear_sky_map(*zenith, toward, *ground_reflectance)
+        .map_err(|e| internal(anyhow!(e)))?;
+    request.sky = Some(Sky {
+        model: SkyModel::Clear {
+            zenith: *zenith,
+            sun: Some(toward.to_array()),
+            map: Some(std::sync::Arc::new(map)),
+        },
+        ground_reflectance: *ground_reflectance,
+    });
+    Ok(())
 }
 
 /// The probes `job.probes` asks for, from the bake's b, with a progress step; `None` when off.
