@@ -938,3 +938,56 @@ fn a_clear_sky_lights_an_open_floor_as_its_formula_integrates() {
     assert_eq!(run.stderr.trim().lines().count(), 1, "{}", run.stderr);
     assert!(run.stderr.contains("sun"), "{}", run.stderr);
 }
+
+/// The sky's ray noise is in the error estimate: on the black-walled courtyard at 64 and 256
+/// rays per element, each floor element's error against the view-factor reference is
+/// compared with its estimate (whose sky part is `ρ σ_E / π`, σ_E the standard error of its
+/// rays). Most elements lie within their estimate and nearly all within three times it, and
+/// the estimate falls as the rays grow; the report's `max_sky` is what it says.
+#[test]
+fn the_error_estimate_carries_the_sky_rays_noise() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let mut previous = f64::INFINITY;
+    for samples in ["64", "256"] {
+        let report = bake_courtyard(dir.path(), "noisy", false, "0.5", samples);
+        let (mut within, mut within_3, mut ratios, mut estimates) = (0, 0, Vec::new(), 0.0);
+        let floor: Vec<_> = report.elements.iter().filter(|e| is_floor(e)).collect();
+        for e in &floor {
+            let reference = RHO * element_opening(e.centroid, e.area);
+            let error = (e.b[0] - reference).abs();
+            let estimate = e.error.expect("an error estimate")[0];
+            within += usize::from(error <= estimate);
+            within_3 += usize::from(error <= 3.0 * estimate);
+            ratios.push(error / estimate);
+            estimates += estimate;
+        }
+        ratios.sort_by(f64::total_cmp);
+        let median = ratios[ratios.len() / 2];
+        let summary = report
+            .accuracy
+            .as_ref()
+            .and_then(|a| a.error)
+            .expect("the summary");
+        println!(
+            "{samples} rays: {within} of {} floor elements within their estimate, {within_3} \
+             within 3×, median true/estimate {median:.2}, largest sky part {:.2e}",
+            floor.len(),
+            summary.max_sky[0]
+        );
+        assert!(
+            within * 10 >= floor.len() * 6,
+            "{within} of {}",
+            floor.len()
+        );
+        assert!(
+            within_3 * 100 >= floor.len() * 97,
+            "{within_3} of {}",
+            floor.len()
+        );
+        assert!(median > 0.1, "the estimate is not loose: median {median}");
+        assert!(summary.max_sky[0] > 0.0);
+        let mean = estimates / floor.len() as f64;
+        assert!(mean < previous, "{mean} after {previous}");
+        previous = mean;
+    }
+}

@@ -1,5 +1,5 @@
 //! An estimate of each element's error `|b_i − b̄_i|`, `b̄_i` the area average over the
-//! element of the exact continuous radiosity, per band: five parts, independent sources of
+//! element of the exact continuous radiosity, per band: six parts, independent sources of
 //! error, combined in quadrature (their plain sum, the worst case where every part has the
 //! same sign, overestimated the hierarchy's difference from the dense solve of the same mesh
 //! 30–40× at the median; measured in `tests/end_to_end/hierarchical.rs`).
@@ -41,6 +41,11 @@
 //!   difference from the dense solve at the median. The dense transport integrates every
 //!   element pair: 0 there.
 //!
+//! - **Sky sampling**: where rays decide an element's sky illuminance E, their standard
+//!   error σ_E (`direct::sky::SkyLight::deviation`) becomes `ρ_i σ_E / π` of its b (the
+//!   first reflection; the other elements' errors are independent and of either sign, and
+//!   cancel in what they reflect). 0 where E is a closed form.
+//!
 //! This module looks at a solved bake (mesh, b, ρ, e and the solver's diagnostics); it
 //! integrates nothing and changes no value of `b`.
 
@@ -73,6 +78,9 @@ pub struct Inputs<'a> {
     pub samples: u32,
     /// What the links' models miss (hierarchical transport only).
     pub link_error: Option<LinkMisses<'a>>,
+    /// Per element: the standard error of the source the sky's rays gave it (`ρ σ_E / π`;
+    /// empty without a sky).
+    pub source_noise: &'a [[f64; BANDS]],
 }
 
 /// Per element and band, what a hierarchical transport's links miss of the irradiance: their
@@ -104,6 +112,10 @@ pub struct ErrorSummary {
     /// bakes before it existed).
     #[serde(default)]
     pub max_links: [f64; BANDS],
+    /// Per band: the largest sky-sampling part (0 without a sky or where it is exact; absent
+    /// from reports of bakes before it existed).
+    #[serde(default)]
+    pub max_sky: [f64; BANDS],
 }
 
 /// The summary of the estimates `parts`, one per element of `mesh` (RMS weighted by area, in
@@ -119,6 +131,7 @@ pub fn summary(mesh: &ElementMesh, parts: &[Parts]) -> ErrorSummary {
         max_visibility: [0.0; BANDS],
         max_solver: [0.0; BANDS],
         max_links: [0.0; BANDS],
+        max_sky: [0.0; BANDS],
     };
     let mut area = 0.0;
     for (i, (element, p)) in mesh.elements.iter().zip(parts).enumerate() {
@@ -136,6 +149,7 @@ pub fn summary(mesh: &ElementMesh, parts: &[Parts]) -> ErrorSummary {
             s.max_visibility[c] = s.max_visibility[c].max(p.visibility[c]);
             s.max_solver[c] = s.max_solver[c].max(p.solver[c]);
             s.max_links[c] = s.max_links[c].max(p.links[c]);
+            s.max_sky[c] = s.max_sky[c].max(p.sky[c]);
         }
     }
     if area > 0.0 {
@@ -144,7 +158,7 @@ pub fn summary(mesh: &ElementMesh, parts: &[Parts]) -> ErrorSummary {
     s
 }
 
-/// The five parts of one element's estimate, per band.
+/// The six parts of one element's estimate, per band.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Parts {
     pub discretisation: [f64; BANDS],
@@ -152,6 +166,7 @@ pub struct Parts {
     pub visibility: [f64; BANDS],
     pub solver: [f64; BANDS],
     pub links: [f64; BANDS],
+    pub sky: [f64; BANDS],
 }
 
 impl Parts {
@@ -162,7 +177,8 @@ impl Parts {
                 + self.form_factors[c].powi(2)
                 + self.visibility[c].powi(2)
                 + self.solver[c].powi(2)
-                + self.links[c].powi(2))
+                + self.links[c].powi(2)
+                + self.sky[c].powi(2))
             .sqrt()
         })
     }
@@ -204,6 +220,7 @@ pub fn estimate(inputs: &Inputs) -> Vec<Parts> {
             let discretisation = discretisation(mesh, inputs.b, i, &neighbours[i]);
             let mut parts = Parts {
                 discretisation,
+                sky: inputs.source_noise.get(i).copied().unwrap_or([0.0; BANDS]),
                 ..Parts::default()
             };
             for c in 0..BANDS {
@@ -404,7 +421,8 @@ mod tests {
 
     /// The parts other than discretisation follow their formulas: a uniform field, 2 × 2
     /// elements, ρH = b − e = 0.5, deliveries 0.4 in quadrature, ‖A⁻¹‖ = 10 / (1 + 0.5),
-    /// amplification B̄ / Ē = 1.5, accuracy 1e-6, 100 rays on half of them, residual 1e-12.
+    /// amplification B̄ / Ē = 1.5, accuracy 1e-6, 100 rays on half of them, residual 1e-12,
+    /// a sky part of 0.25 given as it is.
     #[test]
     fn the_other_parts_follow_their_formulas() {
         let mesh = square_mesh(2);
@@ -424,6 +442,7 @@ mod tests {
             sampled: &sampled,
             samples: 100,
             link_error: None,
+            source_noise: &vec![[0.25; BANDS]; n],
         });
         for (i, p) in parts.iter().enumerate() {
             assert_eq!(p.discretisation, [0.0; BANDS]);
@@ -438,7 +457,8 @@ mod tests {
             };
             assert!((p.visibility[0] - vis).abs() < 1e-15, "{p:?}");
             assert!((p.solver[0] - 1e-12 * 10.0 * 1.5).abs() < 1e-24, "{p:?}");
-            let total = (ff * ff + vis * vis + 1.5e-11f64.powi(2)).sqrt();
+            assert_eq!(p.sky, [0.25; BANDS]);
+            let total = (ff * ff + vis * vis + 1.5e-11f64.powi(2) + 0.25f64.powi(2)).sqrt();
             assert!((p.total()[0] - total).abs() < 1e-15);
         }
     }

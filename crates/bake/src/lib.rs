@@ -478,6 +478,7 @@ pub(crate) fn run_mesh(
         emission: &emission,
         external: &light.external,
         source: &light.source,
+        source_noise: &light.source_noise,
         rho_max,
         plan: &plan,
     };
@@ -592,6 +593,8 @@ struct Light {
     sky_stats: Option<SkyStats>,
     /// e + ρ H⁰.
     source: Vec<[f64; BANDS]>,
+    /// ρ σ_E / π: the standard error of the sky's part of the source (empty without a sky).
+    source_noise: Vec<[f64; BANDS]>,
 }
 
 impl Light {
@@ -645,6 +648,15 @@ impl Light {
             .zip(rho)
             .map(|(h, r)| reflected(h, r))
             .collect();
+        let source_noise: Vec<[f64; BANDS]> = match &sky_lit {
+            Some(s) => s
+                .deviation
+                .iter()
+                .zip(rho)
+                .map(|(d, r)| reflected(&d.map(over_pi), r))
+                .collect(),
+            None => Vec::new(),
+        };
         let external: Vec<[f64; BANDS]> = lights_h
             .iter()
             .zip(&sky_h)
@@ -662,6 +674,7 @@ impl Light {
             sky,
             sky_stats: sky_lit.map(|s| s.stats),
             source,
+            source_noise,
         }
     }
 }
@@ -742,6 +755,7 @@ fn estimate_error(p: &transports::Problem, done: &transports::Transported) -> Ve
                 carried,
                 visibility,
             }),
+        source_noise: p.source_noise,
     })
 }
 

@@ -28,6 +28,8 @@ pub(crate) struct Problem<'a> {
     pub external: &'a [[f64; BANDS]],
     /// e + ρ H⁰ per element.
     pub source: &'a [[f64; BANDS]],
+    /// The standard error of the sky's part of `source` per element (empty without a sky).
+    pub source_noise: &'a [[f64; BANDS]],
     pub rho_max: f64,
     /// The transport, solve and estimator this solve runs with.
     pub plan: &'a Plan,

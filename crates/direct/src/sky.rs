@@ -353,6 +353,11 @@ pub struct SkyLight {
     /// Per element and band: mean illuminance E (the analytic skies are grey: the same in
     /// every band; a map has colour).
     pub illuminance: Vec<[f64; 3]>,
+    /// Per element and band: the standard error of E from its rays (0 where E is a closed
+    /// form): the pooled rays' sample deviation over √N, as if they were independent draws
+    /// from the balance heuristic's mixture density — stratification only makes the true
+    /// error smaller.
+    pub deviation: Vec<[f64; 3]>,
     pub stats: SkyStats,
 }
 
@@ -429,21 +434,27 @@ pub fn illuminate(sky: &Sky, mesh: &ElementMesh, occluders: &Occluders, samples:
         pass.portals.open_where(&marks);
     }
     let pass = pass;
-    let per_element: Vec<([f64; 3], SkyStats)> = (0..mesh.elements.len())
+    let per_element: Vec<([f64; 3], [f64; 3], SkyStats)> = (0..mesh.elements.len())
         .into_par_iter()
         .map_init(Scratch::default, |scratch, i| {
             pass.element(mesh, i, blockable(i).then_some(escaped[i]), scratch)
         })
         .collect();
     let mut stats = SkyStats::default();
+    let mut deviation = Vec::with_capacity(per_element.len());
     let illuminance = per_element
         .iter()
-        .map(|(e, s)| {
+        .map(|(e, d, s)| {
             stats.add(s);
+            deviation.push(*d);
             *e
         })
         .collect();
-    SkyLight { illuminance, stats }
+    SkyLight {
+        illuminance,
+        deviation,
+        stats,
+    }
 }
 
 /// Cells per side of each face of [`Portals`]' box.
@@ -693,28 +704,32 @@ impl Pass<'_> {
         escaped
     }
 
-    /// Element `i`'s mean illuminance and what it took; `escaped`: `None` where its polygon
-    /// has no polygon in front of it (the closed form), else how many of its probe rays met
-    /// no surface. `scratch` is reused across elements.
+    /// Element `i`'s mean illuminance, its standard error ([`SkyLight::deviation`]) and what
+    /// it took; `escaped`: `None` where its polygon has no polygon in front of it (the closed
+    /// form), else how many of its probe rays met no surface. `scratch` is reused across
+    /// elements.
     fn element(
         &self,
         mesh: &ElementMesh,
         i: usize,
         escaped: Option<u32>,
         scratch: &mut Scratch,
-    ) -> ([f64; 3], SkyStats) {
+    ) -> ([f64; 3], [f64; 3], SkyStats) {
         let mut stats = SkyStats::default();
         let area = mesh.elements[i].area;
         if area <= 0.0 || area.is_nan() {
-            return ([0.0; 3], stats);
+            return ([0.0; 3], [0.0; 3], stats);
         }
         let patch = Patch::element(mesh, i);
+        let mut deviation = [0.0; 3];
         let e = if let Some(escaped) = escaped {
             stats.elements_sampled = 1;
             stats.rays_cast = (self.probes * self.probes) as u64;
             let aim = !self.portals.cells.is_empty()
                 && (escaped as f64) < AIM_BELOW * (self.probes * self.probes) as f64;
-            self.sampled(&patch, i, aim, scratch, &mut stats)
+            let (e, d) = self.sampled(&patch, i, aim, scratch, &mut stats);
+            deviation = d;
+            e
         } else {
             stats.elements_exact = 1;
             self.closed
@@ -726,7 +741,7 @@ impl Pass<'_> {
             stats.elements_lit = 1;
             stats.flux = e.map(|v| v * area);
         }
-        (e, stats)
+        (e, deviation, stats)
     }
 
     /// The rays after the probes (k² − probes²): `n_c` cosine-weighted, `n_a` aimed at the
@@ -745,7 +760,7 @@ impl Pass<'_> {
         aim: bool,
         scratch: &mut Scratch,
         stats: &mut SkyStats,
-    ) -> [f64; 3] {
+    ) -> ([f64; 3], [f64; 3]) {
         let Scratch { points, cdf } = scratch;
         let k = self.k;
         let n = patch.normal();
@@ -811,10 +826,11 @@ impl Pass<'_> {
             }
             cos / density
         };
-        let mut sum = [0.0; 3];
+        let (mut sum, mut squares) = ([0.0; 3], [0.0; 3]);
         let mut add = |value: [f64; 3], w: f64| {
             for b in 0..3 {
                 sum[b] += value[b] * w;
+                squares[b] += (value[b] * w).powi(2);
             }
         };
         for (j, &p) in points.iter().take(n_c).enumerate() {
@@ -859,7 +875,19 @@ impl Pass<'_> {
                 }
             }
         }
-        sum
+        // E is the mean of N terms c_j = N v_j w_j (every ray, those that brought nothing
+        // included): its variance ≈ (N Σ (v w)² − E²) / (N − 1).
+        let rays = (n_c + n_a + n_m) as f64;
+        let deviation = [0, 1, 2].map(|b| {
+            if rays > 1.0 {
+                ((rays * squares[b] - sum[b] * sum[b]) / (rays - 1.0))
+                    .max(0.0)
+                    .sqrt()
+            } else {
+                sum[b]
+            }
+        });
+        (sum, deviation)
     }
 
     /// The radiance a ray from `p` along `d` brings: the sky's (or the ground's) if it meets

@@ -33,7 +33,7 @@ use std::path::Path;
 /// `iterative` method and the `energy` object; 4: `lights`, `energy.delivered`, elements'
 /// `direct`; 5: elements' `h`; 6: `elements_included`, `element_summary`, the `accuracy`
 /// object and elements' `error`; 7: `sky` and elements' `sky`; 8: `sky.model` `"map"` with
-/// `sky.file`, the `"clear"` model with `zenith` and `sun`, `sky.delivered` and elements'
+/// `sky.file`, the `"clear"` model with `zenith` and `sun`, `accuracy.error.max_sky`, `sky.delivered` and elements'
 /// `sky` per band (a map has colour), and `probes`).
 pub const SCHEMA_VERSION: u32 = 8;
 
@@ -517,6 +517,7 @@ fn check_finite(report: &Report) -> Result<(), ExportError> {
                     e.max_visibility,
                     e.max_solver,
                     e.max_links,
+                    e.max_sky,
                 ]
                 .into_iter()
                 .flatten()
