@@ -333,13 +333,17 @@ fn a_glb_embeds_every_atlas_and_several_atlases_get_their_own_png() {
     bake_testkit::validate_clean(&[out, gltf_out]);
 }
 
-/// Runs a `tools/` check on a flat baked-texture bake of the Cornell box and asserts that it
-/// succeeded, compared at least `at_least` element centres and found none past 2 levels;
-/// its last `PREFIX {...}` line as JSON.
-fn check_with_tool(tool: &str, extra: &[&str], prefix: &str, at_least: u64) -> serde_json::Value {
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    let (_, out) = bake_baked(&fixture("cornell.gltf"), dir.path(), &[]);
-    let report = dir.path().join("report.json");
+/// Runs a `tools/` check on the baked-texture bake `out` (its report beside it) with `extra`
+/// arguments and asserts that it succeeded, compared at least `at_least` element centres
+/// and found none past 2 levels; its last `PREFIX {...}` line as JSON.
+fn run_check(
+    tool: &str,
+    out: &Path,
+    extra: &[&std::ffi::OsStr],
+    prefix: &str,
+    at_least: u64,
+) -> serde_json::Value {
+    let report = out.with_file_name("report.json");
     let checked = std::process::Command::new(bake_testkit::tools_dir().join(tool))
         .args([out.as_os_str(), report.as_os_str()])
         .args(extra)
@@ -363,6 +367,14 @@ fn check_with_tool(tool: &str, extra: &[&str], prefix: &str, at_least: u64) -> s
         "{result}"
     );
     result
+}
+
+/// [`run_check`] on a flat baked-texture bake of the Cornell box.
+fn check_with_tool(tool: &str, extra: &[&str], prefix: &str, at_least: u64) -> serde_json::Value {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let (_, out) = bake_baked(&fixture("cornell.gltf"), dir.path(), &[]);
+    let extra: Vec<&std::ffi::OsStr> = extra.iter().map(|a| a.as_ref()).collect();
+    run_check(tool, &out, &extra, prefix, at_least)
 }
 
 /// Blender's own import of the baked-texture bake (its `KHR_materials_unlit` set-up, nothing
@@ -410,31 +422,16 @@ fn blender_shows_a_textured_baked_texture_as_the_texture_says() {
     assert!(expected.len() >= 50, "{} floor elements", expected.len());
     let expected_path = dir.path().join("expected.json");
     common::write_json(&expected_path, &serde_json::Value::Object(expected));
-    let report_path = dir.path().join("report.json");
-    let checked =
-        std::process::Command::new(bake_testkit::tools_dir().join("blender-cycles-check"))
-            .args([out.as_os_str(), report_path.as_os_str()])
-            .args([
-                "--baked-texture".as_ref(),
-                "--expected".as_ref(),
-                expected_path.as_os_str(),
-            ])
-            .output()
-            .expect("run tools/blender-cycles-check");
-    let stdout = String::from_utf8_lossy(&checked.stdout);
-    let result: serde_json::Value = stdout
-        .lines()
-        .rev()
-        .find_map(|l| l.strip_prefix("CYCLES_CHECK "))
-        .and_then(|l| serde_json::from_str(l).ok())
-        .unwrap_or(serde_json::Value::Null);
-    println!("blender-cycles-check on the textured floor: {result}");
-
-    assert!(checked.status.success(), "{stdout}");
-    assert!(result["compared"].as_u64().unwrap_or(0) >= 50, "{result}");
-    assert!(
-        result["max_levels"].as_f64().unwrap_or(f64::MAX) <= 2.0,
-        "{result}"
+    run_check(
+        "blender-cycles-check",
+        &out,
+        &[
+            "--baked-texture".as_ref(),
+            "--expected".as_ref(),
+            expected_path.as_os_str(),
+        ],
+        "CYCLES_CHECK ",
+        50,
     );
 }
 

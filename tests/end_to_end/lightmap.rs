@@ -1209,7 +1209,7 @@ fn source_ranges(solved: &Solved) -> Vec<([f64; 3], [f64; 3])> {
             r.1[c] = r.1[c].max(solved.h[e][c]);
         }
     }
-    let (lo, hi) = bake_scene_bounds(polygons);
+    let (lo, hi) = importer::bounds(polygons);
     let tolerance = 1e-6 * (hi - lo).length();
     let boxes: Vec<(DVec3, DVec3)> = polygons
         .iter()
@@ -1242,13 +1242,6 @@ fn source_ranges(solved: &Solved) -> Vec<([f64; 3], [f64; 3])> {
             range
         })
         .collect()
-}
-
-fn bake_scene_bounds(polygons: &[importer::Polygon]) -> (DVec3, DVec3) {
-    polygons.iter().flat_map(|p| p.vertices.iter()).fold(
-        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-        |(l, h), v| (l.min(*v), h.max(*v)),
-    )
 }
 
 /// The worst texel overshoot past its sources' range, relative to the range's top (0 when

@@ -121,25 +121,22 @@ pub fn clear_sky_map(
 ) -> Result<EnvironmentMap, crate::envmap::MapError> {
     let (w, h) = (CLEAR_SKY_COLUMNS, CLEAR_SKY_COLUMNS / 2);
     let zs = sun.y.clamp(-1.0, 1.0).acos();
-    let texel = |k: usize| {
+    // Rows above the middle look above the horizon (the rows are symmetric about it).
+    let sky = |k: usize| {
         let d = EnvironmentMap::direction(
             ((k % w) as f64 + 0.5) / w as f64,
             ((k / w) as f64 + 0.5) / h as f64,
         );
-        (d.y > 0.0).then(|| {
-            let z = d.y.clamp(-1.0, 1.0).acos();
-            let chi = d.dot(sun).clamp(-1.0, 1.0).acos();
-            (zenith * clear_sky(z, chi, zs)) as f32
-        })
+        let chi = d.dot(sun).clamp(-1.0, 1.0).acos();
+        (zenith * clear_sky(d.y.clamp(-1.0, 1.0).acos(), chi, zs)) as f32
     };
-    let mut texels: Vec<[f32; 3]> = (0..w * h).map(|k| [texel(k).unwrap_or(0.0); 3]).collect();
-    let sky = EnvironmentMap::from_texels("the clear sky", w, h, texels.clone())?;
-    let ground = (ground_reflectance * sky.unobstructed(DVec3::Y)[0] / PI) as f32;
-    for (k, t) in texels.iter_mut().enumerate() {
-        if texel(k).is_none() {
-            *t = [ground; 3];
-        }
-    }
+    let upper = w * h / 2;
+    let mut texels: Vec<[f32; 3]> = (0..w * h)
+        .map(|k| [if k < upper { sky(k) } else { 0.0 }; 3])
+        .collect();
+    let dome = EnvironmentMap::from_texels("the clear sky", w, h, texels.clone())?;
+    let ground = (ground_reflectance * dome.unobstructed(DVec3::Y)[0] / PI) as f32;
+    texels[upper..].fill([ground; 3]);
     EnvironmentMap::from_texels("the clear sky", w, h, texels)
 }
 

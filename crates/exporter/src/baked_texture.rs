@@ -205,11 +205,7 @@ pub fn surface_texels(bake: &BakedTextureBake, k: usize) -> Result<Vec<[f32; 3]>
             let polygon = scene.polygons.get(p).ok_or_else(|| {
                 ExportError::InvalidData(format!("lightmap texel of missing polygon {p}"))
             })?;
-            let point = polygon
-                .vertices
-                .iter()
-                .zip(weights)
-                .fold(DVec3::ZERO, |sum, (&v, w)| sum + v * w);
+            let point = at_weights(polygon, weights);
             let (rho, e) = surface_at(bake, p, point);
             let value: [f32; 3] = std::array::from_fn(|c| (rho[c] * f64::from(h[c]) + e[c]) as f32);
             if !value.iter().all(|v| v.is_finite()) {
@@ -248,26 +244,43 @@ pub fn surface_alpha(bake: &BakedTextureBake, k: usize) -> Option<Vec<f32>> {
                 let Some(mask) = scene.alpha_masks.get(material).copied().flatten() else {
                     return 1.0;
                 };
-                let point = polygon
-                    .vertices
-                    .iter()
-                    .zip(weights)
-                    .fold(DVec3::ZERO, |sum, (&v, w)| sum + v * w);
+                let point = at_weights(polygon, weights);
                 let texture = scene.materials[material]
                     .base_color_texture
                     .as_ref()
-                    .and_then(|reference| {
-                        let uv = scene.uvs.get(p).and_then(Option::as_ref)?;
-                        let at = uv.at((reference.tex_coord as usize).min(1), point)?;
-                        let texture = scene.textures.get(reference.texture)?;
-                        let image = scene.images.get(texture.image)?;
-                        Some(texture::sample_alpha(texture, image, reference.apply(at)))
-                    })
-                    .unwrap_or(1.0);
+                    .and_then(|reference| texture_at(scene, p, reference, point))
+                    .map_or(1.0, |(texture, image, at)| {
+                        texture::sample_alpha(texture, image, at)
+                    });
                 (mask.factor * texture).clamp(0.0, 1.0) as f32
             })
             .collect(),
     )
+}
+
+/// The world point of `polygon` at its corners' `weights` ([`Lightmap::texel_point`]).
+fn at_weights(polygon: &scene::Polygon, weights: [f64; 4]) -> DVec3 {
+    polygon
+        .vertices
+        .iter()
+        .zip(weights)
+        .fold(DVec3::ZERO, |sum, (&v, w)| sum + v * w)
+}
+
+/// The texture `reference` names and the texture coordinate it is sampled at, for world
+/// point `point` of polygon `p` (its `TEXCOORD_0` or `_1` there, the reference's transform
+/// applied); `None` where the polygon has no such coordinates or the texture is missing.
+fn texture_at<'a>(
+    scene: &'a Scene,
+    p: usize,
+    reference: &TextureRef,
+    point: DVec3,
+) -> Option<(&'a scene::Texture, &'a scene::Image, glam::DVec2)> {
+    let uv = scene.uvs.get(p).and_then(Option::as_ref)?;
+    let at = uv.at((reference.tex_coord as usize).min(1), point)?;
+    let texture = scene.textures.get(reference.texture)?;
+    let image = scene.images.get(texture.image)?;
+    Some((texture, image, reference.apply(at)))
 }
 
 /// ρ and e of polygon `p`'s material at world point `point`: the factors times the textures
@@ -278,19 +291,13 @@ fn surface_at(bake: &BakedTextureBake, p: usize, point: DVec3) -> ([f64; 3], [f6
     let material = &scene.materials[scene.polygons[p].material];
     let uv = scene.uvs.get(p).and_then(Option::as_ref);
     let textured = |factor: [f64; 3], reference: &Option<TextureRef>| {
-        let (Some(reference), Some(uv)) = (reference, uv) else {
+        let Some((texture, image, at)) = reference
+            .as_ref()
+            .and_then(|reference| texture_at(scene, p, reference, point))
+        else {
             return factor;
         };
-        let (Some(texture), Some(at)) = (
-            scene.textures.get(reference.texture),
-            uv.at((reference.tex_coord as usize).min(1), point),
-        ) else {
-            return factor;
-        };
-        let Some(image) = scene.images.get(texture.image) else {
-            return factor;
-        };
-        let value = texture::sample(texture, image, reference.apply(at));
+        let value = texture::sample(texture, image, at);
         std::array::from_fn(|c| factor[c] * value[c].clamp(0.0, 1.0))
     };
     let mut rho = textured(material.rho, &material.base_color_texture);

@@ -139,7 +139,8 @@ pub(crate) fn groups(polygons: &[Polygon], largest: f64, reach: f64) -> Vec<Grou
             continue;
         }
         chart.grow(polygons, &edges, seed, largest, &mut taken);
-        out.push(oriented(chart.members.clone(), chart.uv.clone(), largest));
+        let members = std::mem::take(&mut chart.members);
+        out.push(oriented(members, std::mem::take(&mut chart.uv), largest));
     }
     out
 }

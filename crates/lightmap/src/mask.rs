@@ -44,17 +44,14 @@ pub(crate) fn mask(width: u32, height: u32, charts: &[(usize, Vec<DVec2>)]) -> M
     // A hair more: the packed charts' coordinates are these plus the region's corner,
     // rounded again, and a block at exactly the reach must stay in.
     let half = REACH + SLACK;
-    for (_, uv) in charts {
+    // Blocks whose square of half-side `half` around their centre (2b + 1) meets a box.
+    let first = |a: f64| (((a - half - 1.0) / 2.0).floor().max(0.0)) as u32;
+    let last = |b: f64, n: u32| ((((b + half - 1.0) / 2.0).ceil().max(0.0)) as u32).min(n - 1);
+    for (_, uv) in charts.iter().filter(|_| w > 0 && h > 0) {
         let (lo, hi) = uv.iter().fold(
             (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
             |(lo, hi), p| (lo.min(*p), hi.max(*p)),
         );
-        // Blocks whose square of half-side 4 around their centre (2b + 1) meets the box.
-        let first = |a: f64| (((a - half - 1.0) / 2.0).floor().max(0.0)) as u32;
-        let last = |b: f64, n: u32| ((((b + half - 1.0) / 2.0).ceil().max(0.0)) as u32).min(n - 1);
-        if w == 0 || h == 0 {
-            break;
-        }
         for bx in first(lo.x)..=last(hi.x, w) {
             let column = &mut columns[bx as usize];
             for by in first(lo.y)..=last(hi.y, h) {
