@@ -212,11 +212,7 @@ pub fn bake(
         .collect();
     let place_seconds = start.elapsed().as_secs_f64();
     let start = std::time::Instant::now();
-    let sources = gather::Sources {
-        mesh,
-        radiosity,
-        occluders,
-    };
+    let sources = gather::Sources::new(mesh, radiosity, occluders);
     let gathered: Vec<(Probe, u64)> = placed
         .par_iter()
         .map(|p| {

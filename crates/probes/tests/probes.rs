@@ -153,11 +153,7 @@ fn furnace_a_uniform_closed_box_gives_its_radiosity_in_every_direction() {
     let mesh = mesh(&polygons, 5);
     let occ = Occluders::new(&polygons).expect("occluders");
     let b = vec![[1.0, 0.5, 0.25]; mesh.elements.len()];
-    let sources = gather::Sources {
-        mesh: &mesh,
-        radiosity: &b,
-        occluders: &occ,
-    };
+    let sources = gather::Sources::new(&mesh, &b, &occ);
     for p in [DVec3::splat(0.5), DVec3::new(0.2, 0.7, 0.9)] {
         let g = gather::gather(p, &sources);
         // ∫ L dω = 4π b/π = 4b: c₀ = 4b Y₀₀.
@@ -207,11 +203,7 @@ fn gather_matches_the_brute_force_with_and_without_an_occluder() {
                 ]
             })
             .collect();
-        let sources = gather::Sources {
-            mesh: &mesh,
-            radiosity: &b,
-            occluders: &occ,
-        };
+        let sources = gather::Sources::new(&mesh, &b, &occ);
         let p = DVec3::new(0.45, 0.55, 0.4);
         let g = gather::gather(p, &sources);
         let (reference, irradiance) = brute_force(p, &mesh, &b, &occ, 1500);
