@@ -387,8 +387,8 @@ fn cube_with_marked_probes(dir: &Path) -> std::path::PathBuf {
 }
 
 /// Nodes marked `"bake_probe": true` are probes at their world origins, after the grid's, in
-/// node order, not moved; the one at grid probe 0's point has its coefficients. With
-/// `--probes off` they are not baked, and a warning says so.
+/// the order the scene is walked, not moved; the one at grid probe 0's point has its
+/// coefficients. With `--probes off` they are not baked, and a warning says so.
 #[test]
 fn marked_nodes_are_probes_after_the_grid() {
     let dir = tempfile::tempdir().expect("tempdir");

@@ -659,7 +659,8 @@ fn read_lights(
 }
 
 /// The world origins of the baked nodes whose `extras` hold `"bake_probe": true` (marked
-/// light probes, docs/probes.md), in node order. Extras that are not JSON objects, or whose
+/// light probes, docs/probes.md), in the order `baked` walks them (depth first from the
+/// scene's roots). Extras that are not JSON objects, or whose
 /// `bake_probe` is anything but `true`, mark nothing; a marked node whose world origin is not
 /// finite is skipped with a warning.
 fn read_probe_points(
