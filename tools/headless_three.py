@@ -4,7 +4,8 @@ tools/threejs_check.py and tools/probe_viewer_check.py.
 `run_page(routes, path, timeout)` serves `routes` (a function from a URL path to a file path or
 `(bytes, content type)`, or None for 404) and three.js from tools/.three at /three/ on a local
 port, opens `path` in headless Chromium and returns the JSON object the page POSTs to /result
-(with "error" set when it posted nothing within `timeout` seconds).
+(with "error" set when it posted nothing within `timeout` seconds). `serve(routes, posted)`
+starts that server alone (for a person's browser) and returns it.
 """
 
 import http.server
@@ -35,9 +36,9 @@ def available():
     return chromium() is not None and os.path.isdir(THREE)
 
 
-def run_page(routes, path, timeout=300):
-    done = threading.Event()
-    result = {}
+def serve(routes, posted):
+    """A server of `routes` and /three/ on a free local port, in a thread; `posted(dict)` gets
+    what a page POSTs."""
 
     class Handler(http.server.BaseHTTPRequestHandler):
         def log_message(self, *args):
@@ -66,13 +67,25 @@ def run_page(routes, path, timeout=300):
 
         def do_POST(self):
             length = int(self.headers.get("Content-Length", 0))
-            result.update(json.loads(self.rfile.read(length)))
+            body = json.loads(self.rfile.read(length))
             self.send_response(204)
             self.end_headers()
-            done.set()
+            posted(body)
 
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
     threading.Thread(target=server.serve_forever, daemon=True).start()
+    return server
+
+
+def run_page(routes, path, timeout=300):
+    done = threading.Event()
+    result = {}
+
+    def posted(body):
+        result.update(body)
+        done.set()
+
+    server = serve(routes, posted)
     url = f"http://127.0.0.1:{server.server_address[1]}{path}"
     profile = tempfile.mkdtemp(prefix="headless-three-")
     process = subprocess.Popen(

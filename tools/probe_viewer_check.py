@@ -6,7 +6,8 @@
 Serves tools/probe-viewer.html and .js, three.js (tools/.three) and BAKED's folder, opens the
 page with `post=1` and prints `PROBE_VIEWER {...}`: the JSON the page posts (probes used and
 their weights, dropped ones, the LightProbe's coefficients, the normal and 8-bit sRGB pixel at
-the canvas centre), without the canvas, which --screenshot writes as a PNG.
+the canvas centre), without the canvas, which --screenshot writes as a PNG. With --serve it
+only serves the interactive page and prints its address (open it in a browser; Ctrl-C stops).
 """
 
 import argparse
@@ -14,6 +15,7 @@ import base64
 import json
 import os
 import sys
+import threading
 import urllib.parse
 
 import headless_three
@@ -29,6 +31,7 @@ def main():
     parser.add_argument("--size")
     parser.add_argument("--no-room", action="store_true")
     parser.add_argument("--screenshot")
+    parser.add_argument("--serve", action="store_true")
     args = parser.parse_args()
     if not headless_three.available():
         print("probe-viewer-check: chromium or tools/.three missing (tools/install-three "
@@ -50,6 +53,15 @@ def main():
             return os.path.join(folder, path[len("/bake/"):])
         return None
 
+    if args.serve:
+        del query["post"]
+        server = headless_three.serve(routes, lambda body: None)
+        print(f"http://127.0.0.1:{server.server_address[1]}/probe-viewer.html?"
+              + urllib.parse.urlencode(query), flush=True)
+        try:
+            threading.Event().wait()
+        except KeyboardInterrupt:
+            return
     result = headless_three.run_page(
         routes, "/probe-viewer.html?" + urllib.parse.urlencode(query))
     png = result.pop("png", None)
