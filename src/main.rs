@@ -172,7 +172,8 @@ pub struct Cli {
     /// Probes on a grid over the scene's bounds, moved out of geometry (or flagged invalid),
     /// each with the incident radiance from the baked surfaces as spherical harmonics up to
     /// L2, written as the BAKE_irradiance_probes extension on every output scene. Punctual
-    /// lights and the sky are not in them: the renderer draws those. See docs/probes.md.
+    /// lights and the sky are not in them: the renderer draws those. Nodes marked
+    /// `"bake_probe": true` in their glTF extras are added after the grid. See docs/probes.md.
     #[arg(long, value_name = "auto|off|grid:SPACING", default_value = "off",
           value_parser = parse_probes, help_heading = "Lights")]
     pub probes: Probes,

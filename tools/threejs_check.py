@@ -18,17 +18,11 @@ from REPORT (ρ, H, e per element; the exposure from BAKED's extras). Prints `TH
 exits 1 when the largest exceeds --tolerance (default 2 levels), 2 when a client is missing.
 """
 
-import http.server
 import json
 import os
-import shutil
-import subprocess
 import sys
-import tempfile
-import threading
 
-TOOLS = os.path.dirname(os.path.abspath(__file__))
-THREE = os.path.join(TOOLS, ".three", "node_modules", "three")
+import headless_three
 
 PAGE = """<!doctype html>
 <html><body>
@@ -95,14 +89,6 @@ try {
 """
 
 
-def chromium():
-    for name in ("chromium", "chromium-browser", "google-chrome"):
-        path = shutil.which(name)
-        if path:
-            return path
-    return None
-
-
 def main():
     argv = sys.argv[1:]
     tolerance = 2.0
@@ -113,75 +99,23 @@ def main():
     if len(argv) != 2:
         raise SystemExit(__doc__)
     baked, report = (os.path.abspath(a) for a in argv)
-    browser = chromium()
-    if browser is None or not os.path.isdir(THREE):
+    if not headless_three.available():
         print("threejs-check: chromium or tools/.three missing (tools/threejs-check installs "
               "three; apt-get install chromium)", file=sys.stderr)
         sys.exit(2)
     folder, name = os.path.split(baked)
     page = PAGE.replace("NAME", name).encode()
-    done = threading.Event()
-    result = {}
 
-    class Handler(http.server.BaseHTTPRequestHandler):
-        def log_message(self, *args):
-            pass
+    def routes(path):
+        if path == "/":
+            return page, "text/html"
+        if path == "/report.json":
+            return report
+        if path.startswith("/bake/"):
+            return os.path.join(folder, path[len("/bake/"):])
+        return None
 
-        def do_GET(self):
-            path = self.path.split("?")[0]
-            if path == "/":
-                body, kind = page, "text/html"
-            else:
-                if path == "/report.json":
-                    file = report
-                elif path.startswith("/three/"):
-                    file = os.path.join(THREE, path[len("/three/"):])
-                elif path.startswith("/bake/"):
-                    file = os.path.join(folder, path[len("/bake/"):])
-                else:
-                    file = None
-                if file is None or not os.path.isfile(file):
-                    self.send_error(404)
-                    return
-                with open(file, "rb") as f:
-                    body = f.read()
-                kind = {".js": "text/javascript", ".json": "application/json",
-                        ".png": "image/png", ".gltf": "model/gltf+json"}.get(
-                    os.path.splitext(file)[1], "application/octet-stream")
-            self.send_response(200)
-            self.send_header("Content-Type", kind)
-            self.send_header("Content-Length", str(len(body)))
-            self.end_headers()
-            self.wfile.write(body)
-
-        def do_POST(self):
-            length = int(self.headers.get("Content-Length", 0))
-            result.update(json.loads(self.rfile.read(length)))
-            self.send_response(204)
-            self.end_headers()
-            done.set()
-
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
-    threading.Thread(target=server.serve_forever, daemon=True).start()
-    url = f"http://127.0.0.1:{server.server_address[1]}/"
-    profile = tempfile.mkdtemp(prefix="threejs-check-")
-    process = subprocess.Popen(
-        [browser, "--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
-         "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist",
-         f"--user-data-dir={profile}", url],
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        finished = done.wait(timeout=300)
-    finally:
-        process.terminate()
-        try:
-            process.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-        server.shutdown()
-        shutil.rmtree(profile, ignore_errors=True)
-    if not finished:
-        result["error"] = "Chromium posted no result within 300 s"
+    result = headless_three.run_page(routes, "/")
     result["file"] = baked
     print("THREEJS_CHECK " + json.dumps(result, sort_keys=True))
     if "error" in result or not result.get("compared") or result["max_levels"] > tolerance:

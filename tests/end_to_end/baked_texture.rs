@@ -441,15 +441,7 @@ fn blender_shows_a_textured_baked_texture_as_the_texture_says() {
 /// when Chromium is missing, unless `BAKE_REQUIRE_THREEJS=1` (or `BAKE_REQUIRE_ALL=1`).
 #[test]
 fn threejs_shows_the_baked_texture_as_the_report_says() {
-    let has_chromium = std::process::Command::new("chromium")
-        .arg("--version")
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !has_chromium {
-        bake_testkit::skip(
-            "BAKE_REQUIRE_THREEJS",
-            "chromium is not installed (tools/ci-clients --chromium installs it)",
-        );
+    if !bake_testkit::chromium_or_skip() {
         return;
     }
     let result = check_with_tool("threejs-check", &[], "THREEJS_CHECK ", 900);

@@ -24,6 +24,7 @@ mod output;
 mod output_set;
 mod physics;
 mod preview_lightmap;
+mod probe_viewer;
 mod probes;
 mod quality;
 mod real_assets;

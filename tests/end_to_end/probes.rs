@@ -16,7 +16,7 @@ const N: usize = 7;
 
 /// The extension of the first scene of the glTF at `path`, and its accessors' data (f32 or u8
 /// as f64) read from the `.bin` beside it.
-fn probes_of(path: &Path) -> (Value, Vec<f64>, Vec<f64>, Vec<f64>) {
+pub(crate) fn probes_of(path: &Path) -> (Value, Vec<f64>, Vec<f64>, Vec<f64>) {
     let text = std::fs::read_to_string(path).expect("read glTF");
     let doc: Value = serde_json::from_str(&text).expect("glTF JSON");
     let used = doc["extensionsUsed"].as_array().expect("extensionsUsed");
@@ -160,7 +160,7 @@ fn brute_force(
 }
 
 /// three.js's `shGetIrradianceAt`, exact constants: Σ Â_l c_lm Y_lm(n).
-fn reconstruct(sh: &[[f64; 3]; 9], n: [f64; 3]) -> [f64; 3] {
+pub(crate) fn reconstruct(sh: &[[f64; 3]; 9], n: [f64; 3]) -> [f64; 3] {
     let kernel = [PI, 2.0 * PI / 3.0, 2.0 * PI / 3.0, 2.0 * PI / 3.0]
         .into_iter()
         .chain([PI / 4.0; 5]);
@@ -355,4 +355,117 @@ fn probes_in_or_near_walls_are_moved_or_invalid() {
             "valid probe {i} at {p:?}: {to_partition} from the partition, {to_room} from the room"
         );
     }
+}
+
+/// The paper's cube with probe nodes marked in `extras`: a parent moved by (0.1, 0.1, 0.1)
+/// holding a marked child at (0.15, 0.15, 0.15) (world (0.25, 0.25, 0.25), grid probe 0's
+/// point at `grid:0.5`) and a marked root node at (0.3, 0.6, 0.4); two nodes whose
+/// `bake_probe` is `false` or a string mark nothing.
+fn cube_with_marked_probes(dir: &Path) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(fixture("cube-embedded.gltf")).expect("read the cube");
+    let mut doc: Value = serde_json::from_str(&text).expect("glTF JSON");
+    let nodes = doc["nodes"].as_array_mut().expect("nodes");
+    let first = nodes.len();
+    nodes.extend([
+        serde_json::json!({"name": "parent", "translation": [0.1, 0.1, 0.1], "children": [first + 1]}),
+        serde_json::json!({"name": "marked child", "translation": [0.15, 0.15, 0.15],
+                           "extras": {"bake_probe": true}}),
+        serde_json::json!({"name": "marked", "translation": [0.3, 0.6, 0.4],
+                           "extras": {"bake_probe": true, "note": "kept"}}),
+        serde_json::json!({"name": "not marked", "translation": [0.5, 0.5, 0.5],
+                           "extras": {"bake_probe": false}}),
+        serde_json::json!({"name": "not marked either", "translation": [0.5, 0.5, 0.5],
+                           "extras": {"bake_probe": "true"}}),
+    ]);
+    let roots = doc["scenes"][0]["nodes"]
+        .as_array_mut()
+        .expect("scene nodes");
+    roots.extend([first, first + 2, first + 3, first + 4].map(|n| serde_json::json!(n)));
+    let input = dir.join("marked.gltf");
+    crate::common::write_json(&input, &doc);
+    input
+}
+
+/// Nodes marked `"bake_probe": true` are probes at their world origins, after the grid's, in
+/// the order the scene is walked, not moved; the one at grid probe 0's point has its
+/// coefficients. With `--probes off` they are not baked, and a warning says so.
+#[test]
+fn marked_nodes_are_probes_after_the_grid() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let input = cube_with_marked_probes(dir.path());
+    let out = dir.path().join("out.gltf");
+    let run = bake([
+        input.as_os_str(),
+        out.as_os_str(),
+        "--subdiv".as_ref(),
+        "3".as_ref(),
+        "--probes".as_ref(),
+        "grid:0.5".as_ref(),
+        "--quiet".as_ref(),
+    ])
+    .success();
+    assert!(run.warning_lines().is_empty(), "{run:?}");
+    let (ext, positions, coefficients, valid) = probes_of(&out);
+    assert_eq!(ext["grid"]["counts"], serde_json::json!([2, 2, 2]));
+    assert_eq!(ext["count"], 10);
+    assert_eq!(valid, vec![1.0; 10]);
+    let at = |i: usize| [0, 1, 2].map(|k| positions[3 * i + k]);
+    let near = |p: [f64; 3], q: [f64; 3]| (0..3).all(|k| (p[k] - q[k]).abs() < 1e-6);
+    assert!(near(at(0), [0.25, 0.25, 0.25]), "{:?}", at(0));
+    assert!(near(at(8), [0.25, 0.25, 0.25]), "{:?}", at(8));
+    assert!(near(at(9), [0.3, 0.6, 0.4]), "{:?}", at(9));
+    for k in 0..27 {
+        let (grid, marked) = (coefficients[k], coefficients[27 * 8 + k]);
+        assert!(
+            (grid - marked).abs() <= 1e-6 * coefficients[0],
+            "{k}: {grid} vs {marked}"
+        );
+    }
+
+    let off = dir.path().join("off.gltf");
+    let run = bake([
+        input.as_os_str(),
+        off.as_os_str(),
+        "--subdiv".as_ref(),
+        "3".as_ref(),
+    ])
+    .success();
+    let warnings = run.warning_lines().join("\n");
+    assert!(
+        warnings.contains("2 node(s) marked \"bake_probe\" not baked"),
+        "{run:?}"
+    );
+    let doc: Value =
+        serde_json::from_str(&std::fs::read_to_string(&off).expect("read")).expect("JSON");
+    assert!(doc["scenes"][0].get("extensions").is_none(), "{doc}");
+}
+
+/// `--target baked-texture` carries the probes too (validator clean): the same grid and
+/// arrays as the vertex bake of the same scene.
+#[test]
+fn the_baked_texture_output_carries_the_probes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut read = Vec::new();
+    for target in ["vertex", "baked-texture"] {
+        let out = dir.path().join(format!("{target}.gltf"));
+        bake_fixture(
+            "cube.gltf",
+            &out,
+            &[
+                "--subdiv", "3", "--probes", "grid:0.5", "--target", target, "--quiet",
+            ],
+        )
+        .success();
+        validate_clean(std::slice::from_ref(&out));
+        read.push(probes_of(&out));
+    }
+    let (vertex, baked) = (&read[0], &read[1]);
+    assert_eq!(baked.0["count"], 8);
+    assert_eq!(baked.0["grid"], vertex.0["grid"]);
+    assert_eq!(baked.0["exposure"], vertex.0["exposure"]);
+    assert_eq!(
+        (&baked.1, &baked.2, &baked.3),
+        (&vertex.1, &vertex.2, &vertex.3)
+    );
+    assert!(baked.2[0] > 0.0);
 }

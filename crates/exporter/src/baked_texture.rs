@@ -72,6 +72,8 @@ pub struct BakedTextureBake<'a> {
     /// The bake's reflectance ceiling `(at, to)`: a band of ρ at or above `at` is lowered to
     /// `to`, per texel as the bake did per element (`--max-reflectance`); `None`: kept.
     pub ceiling: Option<(f64, f64)>,
+    /// Light probes, written as the `BAKE_irradiance_probes` extension on every scene.
+    pub probes: Option<&'a crate::ProbeGrid<'a>>,
 }
 
 /// Stages the baked-texture bake in `set`: per atlas its PNG (`.gltf`), then the `.bin` and
@@ -125,6 +127,9 @@ pub fn stage_baked_texture_gltf(
         Ok((writer.root.push(material), UvNeeds::default()))
     })?;
     writer.use_extension(UNLIT_EXTENSION);
+    if let Some(probes) = bake.probes {
+        crate::probes::add(&mut writer, probes)?;
+    }
     let extras = serde_json::json!({
         BAKED_TEXTURE_EXTRAS_KEY: {
             "quantity": "radiosity b = rho * H + e, the base-colour texture multiplied in per texel",

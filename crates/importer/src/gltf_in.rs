@@ -340,6 +340,7 @@ fn build_scene(
     let mut stats = ImportStats::default();
     let mut warnings = Vec::new();
     let lights = read_lights(root, &layout, &baked_nodes, &mut warnings);
+    let probe_points = read_probe_points(root, &layout, &baked_nodes, &mut warnings);
     let mut cache: HashMap<(usize, usize), Option<LocalPrimitive>> = HashMap::new();
     let mut checked = vec![false; materials.len()];
     let mut instances = Vec::new();
@@ -445,6 +446,7 @@ fn build_scene(
         polygons,
         materials,
         lights,
+        probe_points,
         textures: loaded.textures,
         images: loaded.images,
         uvs,
@@ -654,6 +656,43 @@ fn read_lights(
         }
     }
     lights
+}
+
+/// The world origins of the baked nodes whose `extras` hold `"bake_probe": true` (marked
+/// light probes, docs/probes.md), in the order `baked` walks them (depth first from the
+/// scene's roots). Extras that are not JSON objects, or whose
+/// `bake_probe` is anything but `true`, mark nothing; a marked node whose world origin is not
+/// finite is skipped with a warning.
+fn read_probe_points(
+    root: &Root,
+    layout: &Layout,
+    baked: &[usize],
+    warnings: &mut Vec<String>,
+) -> Vec<DVec3> {
+    let mut points = Vec::new();
+    for &n in baked {
+        let Some(extras) = root.nodes.get(n).and_then(|json| json.extras.as_ref()) else {
+            continue;
+        };
+        let marked = serde_json::from_str::<serde_json::Value>(extras.get())
+            .ok()
+            .and_then(|v| v.get("bake_probe").and_then(serde_json::Value::as_bool))
+            == Some(true);
+        if !marked {
+            continue;
+        }
+        let node = &layout.nodes[n];
+        let position = node.world.transform_point3(DVec3::ZERO);
+        if position.is_finite() {
+            points.push(position);
+        } else {
+            let name = describe("node", node.name.as_deref(), n);
+            warnings.push(format!(
+                "{name}: probe skipped (its world origin is not finite)"
+            ));
+        }
+    }
+    points
 }
 
 /// A light's kind and world placement, or why it cannot be used.

@@ -10,6 +10,8 @@
 //!   write the baked scene back with the same structure;
 //! - punctual [`Light`]s (glTF `KHR_lights_punctual`: point, spot, directional) in world
 //!   space; OBJ has no lights;
+//! - the world origins of nodes marked as light probes (`"bake_probe": true` in a glTF
+//!   node's `extras`, [`Scene::probe_points`]);
 //! - [`ImportStats`] and human-readable warnings for everything that was dropped or changed.
 
 use std::path::{Path, PathBuf};

@@ -465,6 +465,7 @@ fn build_scene(
         polygons,
         materials,
         lights: Vec::new(),
+        probe_points: Vec::new(),
         textures: Vec::new(),
         images: Vec::new(),
         uvs: vec![None; polygon_count],

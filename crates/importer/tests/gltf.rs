@@ -621,3 +621,41 @@ fn skinned_and_morphed_meshes_are_named_as_baked_in_their_bind_pose() {
         "{named:?}"
     );
 }
+
+/// Nodes marked `"bake_probe": true` in their extras become probe points at their world
+/// origins, in the order the baked scene is walked (depth first from its roots, as the baking
+/// of meshes), only in the baked scene; other extras (false, a string, not an object) mark
+/// nothing.
+#[test]
+fn marked_nodes_are_probe_points_at_their_world_origins() {
+    let mut b = GltfBuilder::new();
+    let mesh = b.triangle_mesh("Tri", &TRIANGLE, None, None);
+    let floor = b.node(json!({ "mesh": mesh }));
+    // Written before the child below, walked after it.
+    let root_marked =
+        b.node(json!({ "translation": [0.5, 0.25, -1.0], "extras": { "bake_probe": true } }));
+    let child = b.node(json!({ "translation": [0.0, 1.0, 0.0], "extras": { "bake_probe": true } }));
+    let parent = b.node(json!({
+        "translation": [2.0, 0.0, 0.0], "scale": [2.0, 2.0, 2.0], "children": [child]
+    }));
+    let not_true = b.node(json!({ "extras": { "bake_probe": "true" } }));
+    let not_object = b.node(json!({ "extras": [1, 2] }));
+    let other_scene =
+        b.node(json!({ "translation": [9.0, 9.0, 9.0], "extras": { "bake_probe": true } }));
+    b.scene(&[floor, parent, root_marked, not_true, not_object]);
+    b.scene(&[other_scene]);
+    b.root["scene"] = json!(0);
+    let scene = write_and_load(&b).expect("loads");
+    assert_eq!(scene.probe_points.len(), 2, "{:?}", scene.probe_points);
+    assert!(
+        close(scene.probe_points[0], d(2.0, 2.0, 0.0)),
+        "{:?}",
+        scene.probe_points
+    );
+    assert!(
+        close(scene.probe_points[1], d(0.5, 0.25, -1.0)),
+        "{:?}",
+        scene.probe_points
+    );
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+}

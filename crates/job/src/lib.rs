@@ -400,6 +400,12 @@ fn bake_and_write<E: Events>(
 
     // 4b. Light probes from the solved b (`--probes`).
     let lap = Instant::now();
+    if job.probes == Probes::Off && !scene.probe_points.is_empty() {
+        warnings.push(format!(
+            "{} node(s) marked \"bake_probe\" not baked: --probes is off (give --probes auto or grid:S)",
+            scene.probe_points.len()
+        ));
+    }
     let probe_set = bake_probes(job, &scene, &bake, events)?;
     if probe_set.is_some() {
         so_far.stages.record("probes", lap);
@@ -550,7 +556,8 @@ fn render_clear_sky(
     Ok(())
 }
 
-/// The probes `job.probes` asks for, from the bake's b, with a progress step; `None` when off.
+/// The probes `job.probes` asks for (the grid, then the nodes the input marks), from the
+/// bake's b, with a progress step; `None` when off.
 fn bake_probes<E: Events>(
     job: &Job,
     scene: &importer::Scene,
@@ -564,7 +571,7 @@ fn bake_probes<E: Events>(
     let occluders = bake_core::occluders(scene).map_err(|e| internal(anyhow!(e)))?;
     let placed = probes::bake(
         job.probes,
-        &[],
+        &scene.probe_points,
         &bake.mesh,
         &bake.solution.b,
         &occluders,

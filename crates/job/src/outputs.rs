@@ -164,8 +164,8 @@ impl ProbeArrays {
     }
 }
 
-/// The vertex bake's and the lightmap bake's files, staged (written to temporaries), with the
-/// probes (if any) on their scenes.
+/// The vertex bake's and the lightmap (or baked-texture) bake's files, staged (written to
+/// temporaries), with the probes (if any) on their scenes.
 pub(crate) fn stage_bakes(
     job: &Job,
     scene: &importer::Scene,
@@ -205,6 +205,7 @@ pub(crate) fn stage_bakes(
                         .or(Some(DEFAULT_MAX_REFLECTANCE)),
                 )
                 .filter(|&(_, to)| to < 1.0),
+            probes,
         };
         exporter::stage_baked_texture_gltf(&mut lightmap_files, &paths, &baked)
             .with_context(|| format!("cannot write {}", paths.gltf.display()))

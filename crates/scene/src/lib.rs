@@ -326,6 +326,10 @@ pub struct Scene {
     pub materials: Vec<Material>,
     /// Punctual lights of the baked nodes, in node order (empty for OBJ).
     pub lights: Vec<Light>,
+    /// Light probes marked in the input: the world origin of every baked node whose glTF
+    /// `extras` hold `"bake_probe": true`, depth first from the scene's roots (empty for OBJ;
+    /// docs/probes.md).
+    pub probe_points: Vec<DVec3>,
     /// Textures referenced by materials in use, and their decoded images.
     pub textures: Vec<Texture>,
     pub images: Vec<Image>,

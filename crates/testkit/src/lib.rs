@@ -26,8 +26,8 @@ pub use gltf::{
     position_bytes, GltfBuilder, FLOAT, POINTS, TRIANGLES, UNSIGNED_INT, UNSIGNED_SHORT,
 };
 pub use optional::{
-    blender_installed, blender_or_skip, required, skip, skip_unless_set, validate_clean,
-    validator_available, validator_or_skip, validator_output,
+    blender_installed, blender_or_skip, chromium_or_skip, required, skip, skip_unless_set,
+    validate_clean, validator_available, validator_or_skip, validator_output,
 };
 pub use paths::{
     file_names, files_with_extensions, fixture, fixtures_dir, shared_dir, tools_dir, workspace_dir,

@@ -118,6 +118,20 @@ pub fn blender_or_skip() -> bool {
     )
 }
 
+/// Whether `chromium` runs (for the three.js checks in headless Chromium); when it does not,
+/// [`skip`]s for `BAKE_REQUIRE_THREEJS` (so `BAKE_REQUIRE_ALL=1` makes it fail too).
+pub fn chromium_or_skip() -> bool {
+    let runs = Command::new("chromium")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    here_or_skip(
+        runs,
+        "BAKE_REQUIRE_THREEJS",
+        "chromium is not installed (tools/ci-clients --chromium installs it)",
+    )
+}
+
 /// `here`; when false, [`skip`]s first.
 fn here_or_skip(here: bool, variable: &str, why: &str) -> bool {
     if !here {

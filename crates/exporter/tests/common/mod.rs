@@ -54,6 +54,7 @@ pub fn sample_bake() -> Fixture {
         polygons,
         materials: materials(),
         lights: Vec::new(),
+        probe_points: Vec::new(),
         textures: Vec::new(),
         images: Vec::new(),
         uvs: vec![None; polygon_count],
