@@ -991,3 +991,46 @@ fn the_error_estimate_carries_the_sky_rays_noise() {
         previous = mean;
     }
 }
+
+/// Probes see the sky through openings (issue 36): in a courtyard of black floor and walls
+/// under `--sky uniform:1`, the light at a probe is the sky's alone, radiance 1/π in the
+/// probes' unit over the opening. A probe on the courtyard's axis 0.5 m below its top sees
+/// the 10 × 10 m opening in the solid angle Ω = 4 asin(a² / (a² + h²)) (a = 5 m, h = 0.5 m),
+/// so c₀ = 0.282095 Ω / π, and c₁ (the y coefficient) = 0.488603 F, F the view factor to
+/// the opening (∫ cos θ dω over it is π F); the other first-order coefficients vanish by
+/// symmetry.
+#[test]
+fn probes_see_the_sky_through_the_opening() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = lit_scene(&[(floor(), [0.0; 3]), (walls(), [0.0; 3])], &[]);
+    // A 4 m grid centred on the box: x, z at −4, 0, 4 and y at 0.5, 4.5.
+    let args = ["--sky", "uniform:1", "--probes", "grid:4"];
+    bake_json(dir.path(), "open", &scene, &args);
+    let out = dir.path().join("open-out.gltf");
+    let (_, positions, coefficients, valid) = crate::probes::probes_of(&out);
+    let k = (0..valid.len())
+        .find(|&k| {
+            let p = &positions[3 * k..3 * k + 3];
+            p[0].abs() < 1e-6 && (p[1] - 4.5).abs() < 1e-6 && p[2].abs() < 1e-6
+        })
+        .expect("a probe at (0, 4.5, 0)");
+    assert_eq!(valid[k], 1.0);
+    let (a, h) = (HALF, HEIGHT - 4.5);
+    let solid = 4.0 * (a * a / (a * a + h * h)).asin();
+    let view = 4.0 * corner_rectangle(a, a, h);
+    let c = |i: usize, band: usize| coefficients[27 * k + 3 * i + band];
+    for band in 0..3 {
+        let c0 = 0.282_095 * solid / PI;
+        let c1 = 0.488_603 * view;
+        eprintln!(
+            "band {band}: c0 {:.5} (exact {c0:.5}), c1 {:.5} (exact {c1:.5}), c2 {:.1e}, c3 {:.1e}",
+            c(0, band),
+            c(1, band),
+            c(2, band),
+            c(3, band)
+        );
+        assert!((c(0, band) - c0).abs() < 2e-3 * c0, "c0 band {band}");
+        assert!((c(1, band) - c1).abs() < 2e-3 * c0, "c1 band {band}");
+        assert!(c(2, band).abs() < 2e-3 * c0 && c(3, band).abs() < 2e-3 * c0);
+    }
+}

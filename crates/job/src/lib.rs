@@ -406,7 +406,7 @@ fn bake_and_write<E: Events>(
             scene.probe_points.len()
         ));
     }
-    let probe_set = bake_probes(job, &scene, &bake, events)?;
+    let probe_set = bake_probes(job, &scene, &bake, request.sky.as_ref(), events)?;
     if probe_set.is_some() {
         so_far.stages.record("probes", lap);
     }
@@ -562,6 +562,7 @@ fn bake_probes<E: Events>(
     job: &Job,
     scene: &importer::Scene,
     bake: &bake_core::Bake,
+    sky: Option<&Sky>,
     events: &E,
 ) -> Result<Option<probes::ProbeSet>, Failure> {
     if job.probes == Probes::Off {
@@ -569,6 +570,9 @@ fn bake_probes<E: Events>(
     }
     events.start("probes", 0);
     let occluders = bake_core::occluders(scene).map_err(|e| internal(anyhow!(e)))?;
+    // The sky's radiance L in the probes' unit b / π: it lights a surface to H = E / π.
+    let sky_radiance =
+        sky.map(|sky| move |d: glam::DVec3| sky.radiance(d).map(|l| l / std::f64::consts::PI));
     let placed = probes::bake(
         job.probes,
         &scene.probe_points,
@@ -576,6 +580,7 @@ fn bake_probes<E: Events>(
         &bake.solution.b,
         &occluders,
         scene::bounds(&scene.polygons),
+        sky_radiance.as_ref().map(|f| f as &probes::gather::Sky<'_>),
     );
     events.finish();
     placed.map_err(|e| match e {

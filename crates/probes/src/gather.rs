@@ -69,7 +69,18 @@ pub struct Sources<'a> {
     pub occluders: &'a Occluders,
     /// Each polygon's elements in blocks of about [`BLOCK`] × [`BLOCK`].
     blocks: Blocks,
+    /// What a ray that meets no surface sees ([`Sources::with_sky`]), and the directions
+    /// it is sampled in.
+    sky: Option<(&'a Sky<'a>, Vec<DVec3>)>,
 }
+
+/// The radiance (per band, in the unit of b / π) that a ray along a unit direction sees when
+/// it leaves the scene: the sky and the ground below its horizon.
+pub type Sky<'a> = dyn Fn(DVec3) -> [f64; 3] + Sync + 'a;
+
+/// Directions each probe samples the sky in (a spherical Fibonacci set): the sky seen
+/// through openings is summed over those that leave the scene, each weighing 4π / this.
+pub const SKY_RAYS: usize = 4096;
 
 impl<'a> Sources<'a> {
     /// The sources, with each polygon's elements grouped into blocks once for every probe.
@@ -83,7 +94,15 @@ impl<'a> Sources<'a> {
             radiosity,
             occluders,
             blocks: Blocks::new(mesh, occluders),
+            sky: None,
         }
+    }
+
+    /// The same sources with a sky: each probe adds the sky's radiance along the
+    /// [`SKY_RAYS`] directions that meet no surface.
+    pub fn with_sky(mut self, sky: &'a Sky<'a>) -> Sources<'a> {
+        self.sky = Some((sky, crate::place::fibonacci(SKY_RAYS)));
+        self
     }
 }
 
@@ -254,7 +273,38 @@ pub fn gather(p: DVec3, sources: &Sources) -> Gathered {
             }
         }
     }
+    if let Some((sky, directions)) = &sources.sky {
+        gather_sky(p, sky, directions, occ, &mut out);
+    }
     out
+}
+
+/// Adds the sky seen from `p` along `directions` (uniform over the sphere): those that meet
+/// no surface, front or back, each with weight 4π / their count.
+fn gather_sky(p: DVec3, sky: &Sky<'_>, directions: &[DVec3], occ: &Occluders, out: &mut Gathered) {
+    let weight = 4.0 * PI / directions.len() as f64;
+    // Past every polygon: twice the scene's diagonal from anywhere in its box.
+    let far = 2.0 * occ.scene_scale();
+    let none = [usize::MAX; 2];
+    for &d in directions {
+        out.rays += 1;
+        if occ.segment_blocked(p, p + d * far, none) {
+            continue;
+        }
+        let radiance = sky(d);
+        if radiance.iter().all(|&l| l == 0.0) {
+            continue;
+        }
+        let y = basis(d);
+        for (c, yk) in out.sh.iter_mut().zip(y) {
+            for (value, l) in c.iter_mut().zip(radiance) {
+                *value += l * yk * weight;
+            }
+        }
+        for (s, l) in out.square.iter_mut().zip(radiance) {
+            *s += l * l * weight;
+        }
+    }
 }
 
 /// About the solid angle `patch` subtends at `p`: area × cosine / distance² at its centroid

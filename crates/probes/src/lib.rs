@@ -178,6 +178,7 @@ pub fn bake(
     radiosity: &[[f64; 3]],
     occluders: &Occluders,
     bounds: (DVec3, DVec3),
+    sky: Option<&gather::Sky<'_>>,
 ) -> Result<Option<ProbeSet>, ProbeError> {
     let diagonal = (bounds.1 - bounds.0).length();
     let spacing = match probes {
@@ -212,7 +213,10 @@ pub fn bake(
         .collect();
     let place_seconds = start.elapsed().as_secs_f64();
     let start = std::time::Instant::now();
-    let sources = gather::Sources::new(mesh, radiosity, occluders);
+    let mut sources = gather::Sources::new(mesh, radiosity, occluders);
+    if let Some(sky) = sky {
+        sources = sources.with_sky(sky);
+    }
     let gathered: Vec<(Probe, u64)> = placed
         .par_iter()
         .map(|p| {

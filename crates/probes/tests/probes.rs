@@ -295,7 +295,7 @@ fn same_probes_for_any_thread_count() {
             .num_threads(threads)
             .build()
             .expect("pool")
-            .install(|| bake_probes::bake(Probes::Grid(0.3), &[], &mesh, &b, &occ, bounds))
+            .install(|| bake_probes::bake(Probes::Grid(0.3), &[], &mesh, &b, &occ, bounds, None))
             .expect("probes")
             .expect("some")
     };
