@@ -348,6 +348,17 @@ pub(crate) fn describe(kind: &str, name: Option<&str>, index: usize) -> String {
 
 /// A material's values must be finite, with ρ in [0, 1] and e ≥ 0; `what` names the
 /// material and the mesh using it.
+/// The diffuse reflectance of a surface that transmits t of the light: `(1 − t) ρ` (glTF's
+/// PBR model blends the diffuse lobe by 1 − transmission). An authored ρ outside [0, 1] is
+/// kept as it is for [`check_material`] to refuse.
+pub(crate) fn reflected(rho: [f64; 3], transmission: f64) -> [f64; 3] {
+    if transmission > 0.0 && transmission <= 1.0 && rho.iter().all(|r| (0.0..=1.0).contains(r)) {
+        rho.map(|r| r * (1.0 - transmission))
+    } else {
+        rho
+    }
+}
+
 pub(crate) fn check_material(material: &Material, what: &str) -> Result<(), ImportError> {
     let invalid = |problem: String| ImportError::InvalidValue {
         what: what.to_owned(),
@@ -376,6 +387,12 @@ pub(crate) fn check_material(material: &Material, what: &str) -> Result<(), Impo
         return Err(invalid(format!(
             "reflectance ρ {:?} is outside [0, 1]",
             material.rho
+        )));
+    }
+    if !(0.0..=1.0).contains(&material.transmission) {
+        return Err(invalid(format!(
+            "transmission {} is outside [0, 1]",
+            material.transmission
         )));
     }
     if material.emission.iter().any(|e| *e < 0.0) {

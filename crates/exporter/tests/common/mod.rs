@@ -90,6 +90,7 @@ fn materials() -> Vec<Material> {
             double_sided: false,
             base_color_texture: None,
             emissive_texture: None,
+            transmission: 0.0,
         },
         Material {
             name: Some("panel".into()),
@@ -98,6 +99,7 @@ fn materials() -> Vec<Material> {
             double_sided: true,
             base_color_texture: None,
             emissive_texture: None,
+            transmission: 0.0,
         },
     ]
 }
