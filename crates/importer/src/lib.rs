@@ -90,7 +90,11 @@ impl ImportError {
 ///
 /// - glTF: the nodes of the default scene (else scene 0, else every root node) are baked,
 ///   each mesh once per node that uses it. ρ = `baseColorFactor` rgb, e = `emissiveFactor`
-///   × `KHR_materials_emissive_strength`; the `baseColorTexture` and `emissiveTexture` of
+///   × `KHR_materials_emissive_strength`; glass: transmission t = 1 − (1 − T) α from
+///   `KHR_materials_transmission`'s factor T and, under `alphaMode` `BLEND`, the base
+///   colour's alpha α, with ρ lowered to (1 − t) ρ (docs/input-handling.md, "Glass"; the
+///   transmission texture and a BLEND texture's alpha are warned about and not read); the
+///   `baseColorTexture` and `emissiveTexture` of
 ///   materials in use are decoded ([`texture`]; averaged per element by `bake-texture`);
 ///   `COLOR_0` (VEC3/VEC4, float or normalized integers, within [0, 1]) multiplies ρ, per
 ///   element its exact mean (`bake-texture`). The materials in use are also kept as authored
