@@ -286,3 +286,21 @@ fn light_between_surfaces_crosses_glass_times_its_transmission() {
         );
     }
 }
+
+/// A `doubleSided` pane is two polygons in one place (front and back copies): a ray through
+/// it is dimmed by t once, not t² (the back copy passes everything).
+#[test]
+fn a_double_sided_pane_dims_a_ray_once() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let open = bake_json(dir.path(), "open", &room(None, &[]), &WINDOW_ROOM_SKY);
+    let mut material = transmission(T).expect("a material");
+    material["doubleSided"] = json!(true);
+    let glazed = bake_json(
+        dir.path(),
+        "glazed",
+        &room(Some(material), &[]),
+        &WINDOW_ROOM_SKY,
+    );
+    let ratio = floor(&glazed).0 / floor(&open).0;
+    assert!((ratio - f64::from(T)).abs() < 1e-12, "ratio {ratio}");
+}
