@@ -5,7 +5,11 @@
 //! - under the overcast sky, a `KHR_materials_transmission` pane of 0.9 gives the floor 0.9 ×
 //!   what the open window gives (every sky ray is the open window's ray × 0.9), and 0.9 × the
 //!   independent quadrature of the daylight factor;
-//! - a sun through the window: 0.9 × (exact clipping, one pane);
+//! - a sun through the window: 0.9 × (exact clipping, one pane); a point light: 0.9 × (its
+//!   shadow rays, each × t);
+//! - a lamp over a floor with a pane between (interreflection through glass, the form
+//!   factors' visibility): 0.9 × on the dense and the hierarchical transport;
+//! - a double-sided pane dims once;
 //! - `alphaMode` `BLEND` with α = 0.0017 passes 0.9983;
 //! - the same bytes for 1 and 2 threads.
 
@@ -303,4 +307,29 @@ fn a_double_sided_pane_dims_a_ray_once() {
     );
     let ratio = floor(&glazed).0 / floor(&open).0;
     assert!((ratio - f64::from(T)).abs() < 1e-12, "ratio {ratio}");
+}
+
+/// A point light outside the window: its shadow rays through the pane carry t, so the
+/// floor receives t × the open window's light (the same rays; elements the open window
+/// leaves unshadowed get the exact solid angle there and the same sum of sub-cells here).
+#[test]
+fn a_glazed_window_passes_its_transmission_of_a_point_light() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let lamp = (
+        json!({ "type": "point", "intensity": 1000.0 }),
+        json!({ "translation": [0.0, 2.0, -3.0] }),
+    );
+    let args = ["--max-element-size", "0.5", "--refine", "off"];
+    let open = bake_json(
+        dir.path(),
+        "open",
+        &room(None, std::slice::from_ref(&lamp)),
+        &args,
+    );
+    let glazed = bake_json(dir.path(), "glazed", &room(transmission(T), &[lamp]), &args);
+    let (open_sum, _) = floor(&open);
+    assert!(open_sum > 0.0);
+    let ratio = floor(&glazed).0 / open_sum;
+    eprintln!("point light: glazed / open floor light {ratio:.12}");
+    assert!((ratio - f64::from(T)).abs() < 1e-9, "ratio {ratio}");
 }
