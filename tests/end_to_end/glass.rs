@@ -195,25 +195,33 @@ fn a_blended_pane_passes_what_its_alpha_does_not_cover() {
 
 #[test]
 fn glass_is_the_same_bytes_for_any_thread_count() {
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    let input = dir.path().join("glazed.gltf");
-    common::write_json(&input, &room(transmission(T), &[sun()]));
-    common::assert_same_bytes_for_thread_counts(
-        dir.path(),
-        &input,
-        &["1", "2"],
-        &[
-            "--target",
-            "vertex",
-            "--sky",
-            "overcast:1",
-            "--sky-samples",
-            "64",
-            "--max-element-size",
-            "0.5",
-        ],
-        &["gltf", "bin"],
-    );
+    // Grey walls and a white pane (ρ_eff = 0.1): light bounces through and off the glass.
+    let mut doc = room(transmission(T), &[sun()]);
+    doc["materials"][1]["pbrMetallicRoughness"]["baseColorFactor"] = json!([0.5, 0.5, 0.5, 1.0]);
+    doc["materials"][2]["pbrMetallicRoughness"]["baseColorFactor"] = json!([1.0, 1.0, 1.0, 1.0]);
+    for transport in ["dense", "hierarchical"] {
+        let dir = tempfile::tempdir().expect("a temporary directory");
+        let input = dir.path().join("glazed.gltf");
+        common::write_json(&input, &doc);
+        common::assert_same_bytes_for_thread_counts(
+            dir.path(),
+            &input,
+            &["1", "2"],
+            &[
+                "--target",
+                "vertex",
+                "--transport",
+                transport,
+                "--sky",
+                "overcast:1",
+                "--sky-samples",
+                "64",
+                "--max-element-size",
+                "0.5",
+            ],
+            &["gltf", "bin"],
+        );
+    }
 }
 
 /// Interreflection through glass: a lamp (an emissive 2 × 2 m square facing down, 2 m up)
