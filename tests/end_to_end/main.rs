@@ -13,6 +13,7 @@ mod blender_textures;
 mod cli_errors;
 mod compressed;
 mod corner_touching;
+mod glass;
 mod hierarchical;
 mod lightmap;
 mod lightmap_uv;

@@ -13,12 +13,18 @@ use common::{bake_json, lit_scene};
 use serde_json::Value;
 use std::f64::consts::PI;
 
-const RHO: f64 = 0.5;
+pub(crate) const RHO: f64 = 0.5;
 const HALF: f64 = 5.0;
 const HEIGHT: f64 = 5.0;
 
 /// Two triangles of the planar quad a b c d, wound so that its normal is `normal`'s side.
-fn quad(a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3], normal: [f64; 3]) -> Vec<[f32; 3]> {
+pub(crate) fn quad(
+    a: [f64; 3],
+    b: [f64; 3],
+    c: [f64; 3],
+    d: [f64; 3],
+    normal: [f64; 3],
+) -> Vec<[f32; 3]> {
     let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
     let (u, v) = (sub(b, a), sub(c, a));
     let cross = [
@@ -157,7 +163,7 @@ fn bake_courtyard(
     bake_json(dir, name, &courtyard(roof), &args)
 }
 
-fn is_floor(e: &bake_job::report::ElementEntry) -> bool {
+pub(crate) fn is_floor(e: &bake_job::report::ElementEntry) -> bool {
     e.normal[1] > 0.999 && e.centroid[1].abs() < 1e-9
 }
 
@@ -419,11 +425,16 @@ fn ev100_exposure_maps_1_2_times_2_to_the_n_to_one() {
 // floor point's illuminance is exactly the sky seen through the window: its daylight factor
 // is that over the sky's unobstructed horizontal illuminance.
 
-const ROOM_HALF: f64 = 2.0;
+pub(crate) const ROOM_HALF: f64 = 2.0;
 const ROOM_HEIGHT: f64 = 3.0;
-const WINDOW: [f64; 4] = [-1.0, 1.0, 1.0, 2.5];
+pub(crate) const WINDOW: [f64; 4] = [-1.0, 1.0, 1.0, 2.5];
 
 fn window_room() -> Value {
+    lit_scene(&window_room_meshes(), &[])
+}
+
+/// The window room's floor and (black) walls, as `lit_scene` meshes.
+pub(crate) fn window_room_meshes() -> Vec<(Vec<[f32; 3]>, [f64; 3])> {
     let (h, y) = (ROOM_HALF, ROOM_HEIGHT);
     let [x0, x1, y0, y1] = WINDOW;
     let inward_z = [0.0, 0.0, 1.0];
@@ -492,7 +503,7 @@ fn window_room() -> Value {
         [-h, 0.0, h],
         [0.0, 1.0, 0.0],
     );
-    lit_scene(&[(floor, [RHO; 3]), (walls, [0.0; 3])], &[])
+    vec![(floor, [RHO; 3]), (walls, [0.0; 3])]
 }
 
 /// The overcast sky's illuminance (Lz = 1) at the floor point (x, 0, z) through the window:
@@ -524,7 +535,7 @@ fn through_window(x: f64, z: f64, n: usize) -> f64 {
 
 /// The daylight factor (illuminance over the overcast sky's E_h = 7π/9 for Lz = 1) averaged
 /// over a square floor element: a 6 × 6 midpoint rule over the element.
-fn element_daylight_factor(centroid: [f64; 3], area: f64) -> f64 {
+pub(crate) fn element_daylight_factor(centroid: [f64; 3], area: f64) -> f64 {
     let side = area.sqrt();
     let m = 6;
     let mut sum = 0.0;
@@ -538,18 +549,21 @@ fn element_daylight_factor(centroid: [f64; 3], area: f64) -> f64 {
     sum / (m * m) as f64 / (7.0 * PI / 9.0)
 }
 
+/// The window room's options: the overcast sky, 0.5 m elements, no refinement.
+pub(crate) const WINDOW_ROOM_SKY: [&str; 6] = [
+    "--sky",
+    "overcast:1",
+    "--max-element-size",
+    "0.5",
+    "--refine",
+    "off",
+];
+
 /// The window room baked under `--sky overcast:1` with 0.5 m elements (`samples`: the
 /// `--sky-samples` option, or the quality's default) → per floor element (baked daylight
 /// factor, the reference's).
 fn window_room_daylight(dir: &std::path::Path, samples: Option<&str>) -> Vec<(f64, f64)> {
-    let mut args = vec![
-        "--sky",
-        "overcast:1",
-        "--max-element-size",
-        "0.5",
-        "--refine",
-        "off",
-    ];
+    let mut args = WINDOW_ROOM_SKY.to_vec();
     if let Some(s) = samples {
         args.extend(["--sky-samples", s]);
     }

@@ -328,10 +328,33 @@ pub fn run(scene: &Scene, settings: &Settings, progress: &dyn Progress) -> Resul
     }
 }
 
-/// The scene's polygons as occluders, alpha cut-outs included, as the bake's stages see
-/// them: for stages after the bake that cast rays into the scene (light probes).
+/// The scene's polygons as occluders, alpha cut-outs and glass included, as the bake's
+/// stages see them: for stages after the bake that cast rays into the scene (light probes).
 pub fn occluders(scene: &Scene) -> Result<Occluders, BakeError> {
-    Ok(Occluders::new(&scene.polygons)?.with_cutouts(cutouts(scene)))
+    Ok(Occluders::new(&scene.polygons)?
+        .with_cutouts(cutouts(scene))
+        .with_transmission(transmission(scene)))
+}
+
+/// Per polygon, the share of light a ray crossing it keeps: its material's transmission
+/// (`scene::Material::transmission`, thin glass). The back copy the importer adds for a
+/// double-sided material passes everything (1): its front twin, at the same place, already
+/// attenuates, so a double-sided pane dims a ray by t once, not t².
+fn transmission(scene: &Scene) -> Vec<f64> {
+    scene
+        .polygons
+        .iter()
+        .map(|polygon| {
+            let Some(m) = scene.materials.get(polygon.material) else {
+                return 0.0;
+            };
+            if m.transmission > 0.0 && m.double_sided && polygon.origin.side == scene::Side::Back {
+                1.0
+            } else {
+                m.transmission
+            }
+        })
+        .collect()
 }
 
 /// [`run`] with the transport `settings` plan, no fallback.

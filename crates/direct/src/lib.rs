@@ -336,12 +336,13 @@ impl<'a> LightPass<'a> {
         let lift = n * self.occluders.ray_offset();
         let polygon = patch.polygon();
         let mut sum = 0.0;
-        let (mut rays, mut blocked) = (0u32, 0u32);
+        let (mut rays, mut blocked, mut clear) = (0u32, 0u32, 0u32);
         for_each_cell(corners, k, |cell, centre, jitter| {
             let w = self.falloff(centre - l);
             if w == 0.0 {
                 return;
             }
+            let mut passed = 1.0;
             if shadowed {
                 let p = jitter([rng.next_f64(), rng.next_f64()]) + lift;
                 // The ray stops just short of the light, so a lamp mounted on a ceiling is not
@@ -350,18 +351,25 @@ impl<'a> LightPass<'a> {
                 let end = l - to_light.normalize_or_zero() * self.occluders.ray_offset();
                 stats.rays_cast += 1;
                 rays += 1;
-                if self.occluders.segment_blocked(p, end, [polygon, polygon]) {
+                // Glass passes its transmission of the light.
+                passed = self
+                    .occluders
+                    .segment_transmittance(p, end, [polygon, polygon]);
+                if passed <= 0.0 {
                     blocked += 1;
                     return;
                 }
+                clear += u32::from(passed >= 1.0);
             }
-            sum += w * solid_angle(l, cell);
+            sum += w * passed * solid_angle(l, cell);
         });
         if rays > 0 {
-            *shade = match blocked {
-                0 => Shade::Lit,
-                b if b == rays => Shade::Dark,
-                _ => Shade::Partial,
+            *shade = if clear == rays {
+                Shade::Lit
+            } else if blocked == rays {
+                Shade::Dark
+            } else {
+                Shade::Partial
             };
         }
         sum / area
@@ -412,12 +420,22 @@ impl<'a> LightPass<'a> {
             return cos;
         }
         stats.elements_shadowed = 1;
-        if scratch
+        let panes = scratch
             .candidates
             .iter()
-            .any(|&k| self.occluders.has_cutouts(k))
+            .filter(|&&k| {
+                let t = self.occluders.transmission(k);
+                t > 0.0 && t < 1.0
+            })
+            .count();
+        if panes > 1
+            || scratch
+                .candidates
+                .iter()
+                .any(|&k| self.occluders.has_cutouts(k))
         {
-            // An occluder with alpha cut-outs has no exact shadow polygon: rays.
+            // An occluder with alpha cut-outs has no exact shadow polygon, nor have two
+            // glass panes a simple exact product: rays.
             let share = self.sampled_share(patch, i, stats);
             *shade = Shade::of_share(share);
             return cos * share;
@@ -446,9 +464,10 @@ impl<'a> LightPass<'a> {
             let p = jitter([rng.next_f64(), rng.next_f64()]) + lift;
             let end = p - self.light.direction * self.reach;
             stats.rays_cast += 1;
-            if !self.occluders.segment_blocked(p, end, [polygon, polygon]) {
-                lit += area;
-            }
+            lit += area
+                * self
+                    .occluders
+                    .segment_transmittance(p, end, [polygon, polygon]);
         });
         if total > 0.0 {
             (lit / total).clamp(0.0, 1.0)
@@ -480,7 +499,14 @@ impl<'a> LightPass<'a> {
             tmp,
         } = scratch;
         let mut used = 0;
+        // The one glass pane among the candidates (the caller sends two or more to rays):
+        // its shadow's index in `clipped` and its transmission.
+        let mut pane: Option<(usize, f64)> = None;
         for &k in candidates.iter() {
+            let passes = self.occluders.transmission(k);
+            if passes >= 1.0 {
+                continue; // casts no shadow
+            }
             let occluder = self.occluders.polygon(k);
             // The occluder's part at height ≥ 0 above the receiver's plane, projected along d.
             tmp.clear();
@@ -507,10 +533,13 @@ impl<'a> LightPass<'a> {
                 continue;
             }
             let covered = clip::signed_area(out).abs();
-            if covered >= receiver_area * (1.0 - 1e-12) {
-                return 0.0; // one shadow covers it all
+            if passes <= 0.0 && covered >= receiver_area * (1.0 - 1e-12) {
+                return 0.0; // one opaque shadow covers it all
             }
             std::mem::swap(out, &mut clipped[used]);
+            if passes > 0.0 {
+                pane = Some((used, passes));
+            }
             used += 1;
         }
         if used == 0 {
@@ -518,6 +547,25 @@ impl<'a> LightPass<'a> {
         }
         let shadows: Vec<&[DVec2]> = clipped[..used].iter().map(|p| p.as_slice()).collect();
         let covered = clip::union_area(&shadows);
+        // Behind one pane of transmission t, the light lost is the opaque shadows' union U_o
+        // and 1 − t of the rest of the union U: t U_o + (1 − t) U.
+        let covered = match pane {
+            None => covered,
+            Some((g, t)) => {
+                let opaque: Vec<&[DVec2]> = shadows
+                    .iter()
+                    .enumerate()
+                    .filter(|&(s, _)| s != g)
+                    .map(|(_, p)| *p)
+                    .collect();
+                let opaque = if opaque.is_empty() {
+                    0.0
+                } else {
+                    clip::union_area(&opaque)
+                };
+                t * opaque + (1.0 - t) * covered
+            }
+        };
         // Relative to the receiver's own 2D area, so rounding of A cancels.
         (1.0 - covered / receiver_area).clamp(0.0, 1.0)
     }

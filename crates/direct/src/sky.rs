@@ -9,8 +9,10 @@
 //! its lower half is the ground.
 //!
 //! An element's illuminance is `E = ∫ L(ω) cos θ V(ω) dω` over its front hemisphere, V = 0
-//! where any polygon — front or back face — lies along ω (alpha cut-outs let rays through
-//! where a texture says the surface is not there), averaged over the element:
+//! where any opaque polygon — front or back face — lies along ω (alpha cut-outs let rays
+//! through where a texture says the surface is not there), else the product of the
+//! transmissions of the glass along ω (`Occluders::segment_transmittance`: a window passes
+//! the sky × t), averaged over the element:
 //! - **exact** where nothing can block: an element whose polygon has no other polygon in
 //!   front of its plane ([`visibility::Occluders::any_in_front`]) gets the closed form of a
 //!   plane tilted β from up ([`Sky::unobstructed`]);
@@ -688,9 +690,11 @@ impl Pass<'_> {
             let u = ((s / m) as f64 + rng.next_f64()) / m as f64;
             let v = ((s % m) as f64 + rng.next_f64()) / m as f64;
             let d = frame.cosine(u, v);
-            if !self
+            // A probe through glass finds an opening too (the sky behind it, dimmed).
+            if self
                 .occluders
-                .segment_blocked(p, p + d * self.reach, [polygon, polygon])
+                .segment_transmittance(p, p + d * self.reach, [polygon, polygon])
+                > 0.0
             {
                 escaped += 1;
                 if let Some((c, _)) = self.portals.exit(p, d) {
@@ -887,17 +891,17 @@ impl Pass<'_> {
         (sum, deviation)
     }
 
-    /// The radiance a ray from `p` along `d` brings: the sky's (or the ground's) if it meets
-    /// no polygon but its own, else 0.
+    /// The radiance a ray from `p` along `d` brings: the sky's (or the ground's) times the
+    /// transmission of the glass it passes, 0 if it meets an opaque polygon but its own.
     fn trace(&self, p: DVec3, d: DVec3, polygon: usize, stats: &mut SkyStats) -> [f64; 3] {
         stats.rays_cast += 1;
-        if self
-            .occluders
-            .segment_blocked(p, p + d * self.reach, [polygon, polygon])
-        {
+        let passed =
+            self.occluders
+                .segment_transmittance(p, p + d * self.reach, [polygon, polygon]);
+        if passed <= 0.0 {
             [0.0; 3]
         } else {
-            self.sky.radiance(d)
+            self.sky.radiance(d).map(|l| l * passed)
         }
     }
 }

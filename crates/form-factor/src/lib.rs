@@ -609,11 +609,29 @@ impl DenseFormFactors {
     /// put a rounding above 1 move by that rounding; every element's escape `1 − Σ_j F_ij`
     /// is then ≥ 0.
     pub fn limit_row_sums(&mut self, margin: f64) -> RowSumLimit {
+        self.limit_row_sums_stopped(margin, &[])
+    }
+
+    /// [`DenseFormFactors::limit_row_sums`] where element j stops only `stopped[j]` of the
+    /// light that reaches it (1 − its transmission: glass passes the rest on, and what lies
+    /// behind it is seen too): the bounded sum is `Σ_j F_ij stopped_j`, which is ≤ 1 for any
+    /// ray's chain of panes ((1 − t₁) + t₁ (1 − t₂) + … + t₁ t₂ … = 1). Empty `stopped`: 1
+    /// for every element (missing entries are 1).
+    pub fn limit_row_sums_stopped(&mut self, margin: f64, stopped: &[f64]) -> RowSumLimit {
         let n = self.n;
         let sums: Vec<f64> = self
             .data
             .par_chunks(n.max(1))
-            .map(|row| row.iter().sum())
+            .map(|row| {
+                if stopped.is_empty() {
+                    row.iter().sum()
+                } else {
+                    row.iter()
+                        .enumerate()
+                        .map(|(j, f)| f * stopped.get(j).copied().unwrap_or(1.0))
+                        .sum()
+                }
+            })
             .collect();
         let limit = 1.0 + margin.max(0.0);
         let beyond_margin: Vec<(usize, f64)> = sums
@@ -641,7 +659,12 @@ impl DenseFormFactors {
             largest_after = self
                 .data
                 .par_chunks(n)
-                .map(|row| row.iter().sum::<f64>())
+                .map(|row| {
+                    row.iter()
+                        .enumerate()
+                        .map(|(j, f)| f * stopped.get(j).copied().unwrap_or(1.0))
+                        .sum::<f64>()
+                })
                 .reduce(|| 0.0, f64::max);
         }
         RowSumLimit {

@@ -314,6 +314,7 @@ fn default_material() -> Material {
         double_sided: false,
         base_color_texture: None,
         emissive_texture: None,
+        transmission: 0.0,
     }
 }
 
@@ -399,13 +400,28 @@ fn build_scene(
             if !std::mem::replace(&mut checked[material_index], true) {
                 let name = describe("material", material.name.as_deref(), material_index);
                 check_material(material, &format!("{name} used by {label}"))?;
-                // Blending is not baked: the whole surface reflects and blocks light (MASK
-                // cut-outs are, `alpha_masks`).
-                let mode = root.materials.get(material_index).map(|m| &m.alpha_mode);
-                if let Some(Checked::Valid(gltf::json::material::AlphaMode::Blend)) = mode {
-                    warnings.push(format!(
-                        "{name}: alphaMode BLEND is baked opaque (the whole surface reflects and blocks light)"
-                    ));
+                // Blending and transmission are baked as a transmission factor
+                // (`transmission`); a texture's share of them is not read.
+                if let Some(json) = root.materials.get(material_index) {
+                    let blend =
+                        json.alpha_mode == Checked::Valid(gltf::json::material::AlphaMode::Blend);
+                    let textured = json.pbr_metallic_roughness.base_color_texture.is_some();
+                    if blend && textured {
+                        warnings.push(format!(
+                            "{name}: alphaMode BLEND transmits 1 − the baseColorFactor alpha; the base colour texture's alpha is not read"
+                        ));
+                    }
+                    let texture = json
+                        .extensions
+                        .as_ref()
+                        .and_then(|e| e.transmission.as_ref())
+                        .is_some_and(|t| t.transmission_texture.is_some());
+                    if texture {
+                        warnings.push(format!(
+                            "{name}: KHR_materials_transmission's transmissionTexture is not read (transmissionFactor {} is used everywhere)",
+                            material.transmission
+                        ));
+                    }
                 }
             }
             instances.push(Instance {
@@ -771,19 +787,41 @@ fn read_materials(document: &gltf::Document) -> (Vec<Material>, impl Fn(Option<u
             let base = m.pbr_metallic_roughness().base_color_factor();
             let strength = f64::from(m.emissive_strength().unwrap_or(1.0));
             let emissive = m.emissive_factor();
+            let transmission = transmission(&m, f64::from(base[3]));
+            let authored = [base[0], base[1], base[2]].map(f64::from);
             Material {
                 name: m.name().map(str::to_owned),
-                rho: [base[0], base[1], base[2]].map(f64::from),
+                rho: crate::reflected(authored, transmission),
                 // `+ 0.0` turns a 0 × negative strength (−0) into 0.
                 emission: emissive.map(|e| f64::from(e) * strength + 0.0),
                 double_sided: m.double_sided(),
                 base_color_texture: None,
                 emissive_texture: None,
+                transmission,
             }
         })
         .collect();
     let count = materials.len();
     (materials, move |m: Option<usize>| m.unwrap_or(count))
+}
+
+/// A material's transmission t (`scene::Material::transmission`): the share a thin surface
+/// passes straight through, `1 − (1 − T) α`, T = `KHR_materials_transmission`'s
+/// `transmissionFactor` (its `transmissionTexture` is not read: the importer warns) and α the
+/// `baseColorFactor` alpha under `alphaMode` `BLEND` (the uncovered share passes). A value
+/// outside [0, 1] is refused by `check_material`.
+fn transmission(m: &gltf::Material, alpha: f64) -> f64 {
+    let factor = m
+        .transmission()
+        .map_or(0.0, |t| f64::from(t.transmission_factor()));
+    let coverage = if m.alpha_mode() == gltf::material::AlphaMode::Blend {
+        alpha
+    } else {
+        1.0
+    };
+    // `+ 0.0`: an opaque surface's 1 − 1 is +0. A factor or alpha outside [0, 1] gives a t
+    // outside it (or NaN), which `check_material` refuses.
+    1.0 - (1.0 - factor) * coverage + 0.0
 }
 
 /// Every mesh, with each primitive's material; `baked` is set once polygons exist.

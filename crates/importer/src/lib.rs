@@ -92,7 +92,11 @@ impl ImportError {
 ///
 /// - glTF: the nodes of the default scene (else scene 0, else every root node) are baked,
 ///   each mesh once per node that uses it. ρ = `baseColorFactor` rgb, e = `emissiveFactor`
-///   × `KHR_materials_emissive_strength`; the `baseColorTexture` and `emissiveTexture` of
+///   × `KHR_materials_emissive_strength`; glass: transmission t = 1 − (1 − T) α from
+///   `KHR_materials_transmission`'s factor T and, under `alphaMode` `BLEND`, the base
+///   colour's alpha α, with ρ lowered to (1 − t) ρ (docs/input-handling.md, "Glass"; the
+///   transmission texture and a BLEND texture's alpha are warned about and not read); the
+///   `baseColorTexture` and `emissiveTexture` of
 ///   materials in use are decoded ([`texture`]; averaged per element by `bake-texture`);
 ///   `COLOR_0` (VEC3/VEC4, float or normalized integers, within [0, 1]) multiplies ρ, per
 ///   element its exact mean (`bake-texture`). The materials in use are also kept as authored
@@ -350,6 +354,17 @@ pub(crate) fn describe(kind: &str, name: Option<&str>, index: usize) -> String {
 
 /// A material's values must be finite, with ρ in [0, 1] and e ≥ 0; `what` names the
 /// material and the mesh using it.
+/// The diffuse reflectance of a surface that transmits t of the light: `(1 − t) ρ` (glTF's
+/// PBR model blends the diffuse lobe by 1 − transmission). An authored ρ outside [0, 1] is
+/// kept as it is for [`check_material`] to refuse.
+pub(crate) fn reflected(rho: [f64; 3], transmission: f64) -> [f64; 3] {
+    if transmission > 0.0 && transmission <= 1.0 && rho.iter().all(|r| (0.0..=1.0).contains(r)) {
+        rho.map(|r| r * (1.0 - transmission))
+    } else {
+        rho
+    }
+}
+
 pub(crate) fn check_material(material: &Material, what: &str) -> Result<(), ImportError> {
     let invalid = |problem: String| ImportError::InvalidValue {
         what: what.to_owned(),
@@ -378,6 +393,12 @@ pub(crate) fn check_material(material: &Material, what: &str) -> Result<(), Impo
         return Err(invalid(format!(
             "reflectance ρ {:?} is outside [0, 1]",
             material.rho
+        )));
+    }
+    if !(0.0..=1.0).contains(&material.transmission) {
+        return Err(invalid(format!(
+            "transmission {} is outside [0, 1]",
+            material.transmission
         )));
     }
     if material.emission.iter().any(|e| *e < 0.0) {

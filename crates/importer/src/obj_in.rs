@@ -353,6 +353,7 @@ fn convert_material(m: &tobj::Material) -> Material {
         double_sided: false,
         base_color_texture: None,
         emissive_texture: None,
+        transmission: 0.0,
     }
 }
 
@@ -365,6 +366,7 @@ fn default_material() -> Material {
         double_sided: false,
         base_color_texture: None,
         emissive_texture: None,
+        transmission: 0.0,
     }
 }
 

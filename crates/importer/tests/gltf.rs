@@ -4,7 +4,7 @@
 use bake_importer::{load, ImportError, Polygon, Scene, Side, Transform};
 use bake_testkit::GltfBuilder;
 use glam::{DMat4, DVec3};
-use serde_json::json;
+use serde_json::{json, Value};
 
 const TOL: f64 = 1e-9;
 
@@ -303,21 +303,21 @@ fn emissive_strength_multiplies_the_emissive_factor() {
 }
 
 #[test]
-fn blended_materials_are_baked_opaque_with_a_warning_and_masks_are_kept() {
-    for (mode, warned) in [("OPAQUE", false), ("MASK", false), ("BLEND", true)] {
+fn blended_materials_transmit_what_their_alpha_does_not_cover_and_masks_are_kept() {
+    // (mode, transmission t = 1 − α under BLEND, else 0)
+    for (mode, t) in [("OPAQUE", 0.0), ("MASK", 0.0), ("BLEND", 0.25)] {
         let material = json!({
             "name": "Grate", "alphaMode": mode, "alphaCutoff": 0.25,
             "pbrMetallicRoughness": { "baseColorFactor": [0.5, 0.5, 0.5, 0.75] }
         });
         let b = single(&TRIANGLE, None, Some(material));
         let scene = write_and_load(&b).unwrap();
-        let line = format!("alphaMode {mode} is baked opaque");
-        assert_eq!(
-            scene
-                .warnings
-                .iter()
-                .any(|w| w.contains(&line) && w.contains("Grate")),
-            warned,
+        let m = &scene.materials[0];
+        assert_eq!(m.transmission, t, "{mode}");
+        // ρ_eff = (1 − t) ρ: BLEND reflects α ρ.
+        assert_eq!(m.rho, [0.5 * (1.0 - t); 3], "{mode}");
+        assert!(
+            !scene.warnings.iter().any(|w| w.contains("Grate")),
             "{mode}: {:?}",
             scene.warnings
         );
@@ -334,6 +334,40 @@ fn blended_materials_are_baked_opaque_with_a_warning_and_masks_are_kept() {
             assert_eq!(mask, None);
         }
     }
+}
+
+#[test]
+fn transmission_factor_makes_glass_and_combines_with_blend() {
+    let glass = |factor: Value, blend: bool| {
+        let mut material = json!({
+            "name": "Pane",
+            "pbrMetallicRoughness": { "baseColorFactor": [0.8, 0.6, 0.4, 0.5] },
+            "extensions": { "KHR_materials_transmission": factor }
+        });
+        if blend {
+            material["alphaMode"] = json!("BLEND");
+        }
+        let mut b = single(&TRIANGLE, None, Some(material));
+        b.root["extensionsUsed"] = json!(["KHR_materials_transmission"]);
+        write_and_load(&b)
+    };
+    // T = 0.75 (exact in f32): t = 0.75, ρ = 0.25 × base.
+    let scene = glass(json!({ "transmissionFactor": 0.75 }), false).unwrap();
+    assert_eq!(scene.materials[0].transmission, 0.75);
+    let base = [0.8f32, 0.6, 0.4].map(f64::from);
+    assert_eq!(scene.materials[0].rho, base.map(|r| r * 0.25));
+    // With BLEND α = 0.5: t = 1 − (1 − 0.75) 0.5 = 0.875.
+    let scene = glass(json!({ "transmissionFactor": 0.75 }), true).unwrap();
+    assert_eq!(scene.materials[0].transmission, 0.875);
+    // A factor above 1 is refused like ρ > 1.
+    let refused = glass(json!({ "transmissionFactor": 1.5 }), false);
+    assert!(
+        refused
+            .as_ref()
+            .is_err_and(|e| e.to_string().contains("transmission")),
+        "{:?}",
+        refused.map(|s| s.materials)
+    );
 }
 
 #[test]

@@ -407,7 +407,8 @@ fn hidden(p: DVec3, patch: &Patch, occ: &Occluders, blockers: &mut Vec<usize>) -
 /// Whether polygon `blocker` (without cut-outs, not the patch's own) hides all of `patch`
 /// from `p`: every corner's segment crosses its plane inside it.
 fn covers(p: DVec3, patch: &Patch, occ: &Occluders, blocker: usize) -> bool {
-    if blocker == patch.polygon() || occ.has_cutouts(blocker) {
+    // Glass (transmission > 0) hides nothing wholly.
+    if blocker == patch.polygon() || occ.has_cutouts(blocker) || occ.transmission(blocker) > 0.0 {
         return false;
     }
     let corners = patch.corners();
@@ -545,10 +546,16 @@ impl Quadrature<'_> {
                 0.0
             };
             let mut seen = w > 0.0;
+            let mut w = w;
             if let (Some(occ), true) = (self.occluders, seen) {
                 self.rays += 1;
-                if occ.segment_blocked(self.p, x + n * self.lift, [self.patch.polygon(); 2]) {
-                    seen = false;
+                // Glass passes its transmission; a cell partly behind it is split like a
+                // shadow edge.
+                let passed =
+                    occ.segment_transmittance(self.p, x + n * self.lift, [self.patch.polygon(); 2]);
+                if passed < 1.0 {
+                    seen = passed > 0.0;
+                    w *= passed;
                     blocked += 1;
                 }
             }
@@ -567,7 +574,9 @@ impl Quadrature<'_> {
                 }
                 self.rays += 1;
                 rays += 1;
-                if occ.segment_blocked(self.p, x + n * self.lift, [self.patch.polygon(); 2]) {
+                let passed =
+                    occ.segment_transmittance(self.p, x + n * self.lift, [self.patch.polygon(); 2]);
+                if passed < 1.0 {
                     blocked += 1;
                 }
             }

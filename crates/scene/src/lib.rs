@@ -96,7 +96,10 @@ impl Polygon {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
     pub name: Option<String>,
-    /// Reflectance ρ in [0, 1] per band (glTF `baseColorFactor` rgb, MTL `Kd`).
+    /// Reflectance ρ in [0, 1] per band: the diffuse reflectance the bake uses, glTF
+    /// `baseColorFactor` rgb (MTL `Kd`) × (1 − [`Material::transmission`]): glTF's PBR model
+    /// blends the diffuse lobe by (1 − transmission), so a surface reflects what it does not
+    /// transmit (docs/input-handling.md, "Glass").
     pub rho: [f64; 3],
     /// Emitted intensity e ≥ 0 per band: the e of the paper's eq. 7, in the same units as every
     /// radiosity b (glTF `emissiveFactor` × `KHR_materials_emissive_strength`, MTL `Ke`).
@@ -107,6 +110,13 @@ pub struct Material {
     pub base_color_texture: Option<TextureRef>,
     /// `emissiveTexture`: e is `emission` × the texture's mean over each element.
     pub emissive_texture: Option<TextureRef>,
+    /// The share t in [0, 1] of light that passes straight through the surface (thin glass,
+    /// no refraction; 0: opaque): `1 − (1 − T) α` with T the glTF
+    /// `KHR_materials_transmission` `transmissionFactor` (0 without it) and α the
+    /// `baseColorFactor` alpha when `alphaMode` is `BLEND` (1 otherwise: uncovered is
+    /// transmitted), MTL `d` (dissolve; `Tr` = 1 − d) the same way. Shadow and visibility
+    /// rays crossing the surface are multiplied by t.
+    pub transmission: f64,
 }
 
 /// A material's alpha cut-out (glTF `alphaMode` `MASK`): the surface is absent wherever

@@ -276,7 +276,17 @@ fn dense(
     progress.start("form factors", n as u64);
     let mut matrix = form_factors.dense_with_progress(&|rows| progress.advance(rows));
     progress.finish();
-    let row_sums = matrix.limit_row_sums(options.row_sum_margin);
+    // Glass stops only 1 − t of the light that reaches it; what is behind it is seen too.
+    let stopped: Vec<f64> = if p.occluders.has_transmission() {
+        p.mesh
+            .elements
+            .iter()
+            .map(|el| 1.0 - p.occluders.transmission(el.polygon as usize))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let row_sums = matrix.limit_row_sums_stopped(options.row_sum_margin, &stopped);
     stage_done("form_factors");
     Built {
         operator: BuiltOperator::Dense {

@@ -253,12 +253,13 @@ pub(crate) fn all_blocked(
             continue;
         }
         cast += 1;
-        let blocked = occluders.segment_blocked(
+        // Glass lets part of the light through: only an opaque hit blocks.
+        let passed = occluders.segment_transmittance(
             x + si.normal * lift,
             y + sj.normal * lift,
             [polygon[i] as usize, polygon[j] as usize],
         );
-        if !blocked {
+        if passed > 0.0 {
             return (false, cast);
         }
     }

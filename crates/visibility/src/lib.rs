@@ -17,6 +17,12 @@
 //! - [`Occluders::with_cutouts`] gives polygons alpha cut-outs: a [`Cutout`] per polygon says
 //!   whether it is there at a point, and rays pass where it is not. The caller builds them
 //!   (bake-core, from `alphaMode` `MASK` textures): this crate knows no textures.
+//! - [`Occluders::with_transmission`] makes polygons thin glass: a ray crossing polygon k is
+//!   multiplied by its transmission t_k (straight through, no refraction);
+//!   [`Occluders::segment_transmittance`] is the product over the polygons a segment meets
+//!   (0 at an opaque one), and every visible fraction ([`Occluders::visibility`]) averages it
+//!   instead of 0/1. The conservative tests still count glass as an occluder, so rays are
+//!   cast wherever glass may come between.
 //!
 //! Robustness (all tolerances scale with the scene's bounding-box diagonal `s`):
 //! - points within [`PLANE_TOLERANCE`] × s of a plane count as on it: coplanar neighbours are
@@ -57,6 +63,11 @@ use scene::Polygon;
 /// occluded cost no rays at all.
 pub const DEFAULT_SAMPLES: u32 = 289;
 
+/// At most this many glass polygons along one ray ([`Occluders::segment_transmittance`]);
+/// a ray through more counts as blocked (each pane keeps at most its t: 16 panes of the
+/// clearest glass, t = 0.9, keep 0.185).
+pub const MAX_PANES: usize = 16;
+
 /// Points closer than this × the scene size to a plane are on it.
 pub const PLANE_TOLERANCE: f64 = 1e-6;
 
@@ -90,7 +101,8 @@ pub enum Estimator {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Visibility {
     /// In [0, 1]: exactly 1 when the pair cannot be occluded or every ray arrived, exactly 0
-    /// when every ray was blocked. Multiply the unoccluded form factor by it.
+    /// when every ray was blocked; a ray through glass counts its transmittance. Multiply
+    /// the unoccluded form factor by it.
     pub fraction: f64,
     /// Whether the conservative test found a possible occluder (rays were needed).
     pub occludable: bool,
@@ -170,6 +182,9 @@ pub struct Occluders {
     scale: f64,
     /// Per polygon, when it has cut-outs: whether it is there (blocks light) at a point.
     cutouts: Vec<Option<Cutout>>,
+    /// Per polygon, the share of light a segment crossing it keeps (0: opaque); empty when
+    /// every polygon is opaque.
+    transmission: Vec<f64>,
     /// [`Occluders::any_can_occlude`], once asked.
     any_occludable: std::sync::OnceLock<bool>,
 }
@@ -223,6 +238,7 @@ impl Occluders {
             tree,
             scale,
             cutouts: Vec::new(),
+            transmission: Vec::new(),
             any_occludable: std::sync::OnceLock::new(),
         })
     }
@@ -233,6 +249,32 @@ impl Occluders {
     pub fn with_cutouts(mut self, cutouts: Vec<Option<Cutout>>) -> Occluders {
         self.cutouts = cutouts;
         self
+    }
+
+    /// The same occluders, polygon k keeping `transmission[k]` ∈ [0, 1] of the light of a
+    /// segment that crosses it (thin glass; 0 opaque, 1 as if absent; missing entries are
+    /// 0). Only rays see it ([`Occluders::segment_transmittance`]); the conservative tests
+    /// still count every polygon as an occluder. Values outside [0, 1] are clamped, NaN is 0.
+    pub fn with_transmission(mut self, transmission: Vec<f64>) -> Occluders {
+        self.transmission = if transmission.iter().any(|&t| t > 0.0) {
+            transmission
+                .into_iter()
+                .map(|t| if t > 0.0 { t.min(1.0) } else { 0.0 })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        self
+    }
+
+    /// The share of light polygon `k` lets through (0: opaque).
+    pub fn transmission(&self, k: usize) -> f64 {
+        self.transmission.get(k).copied().unwrap_or(0.0)
+    }
+
+    /// Whether some polygon lets light through ([`Occluders::with_transmission`]).
+    pub fn has_transmission(&self) -> bool {
+        !self.transmission.is_empty()
     }
 
     /// Whether polygon `k` has cut-outs.
@@ -430,27 +472,72 @@ impl Occluders {
 
     /// Whether the segment p–q is blocked by a polygon other than those in `skip` (exact f64
     /// test, polygon edges included, either side of a polygon; a polygon with cut-outs only
-    /// where it is there).
+    /// where it is there). Glass ([`Occluders::with_transmission`]) blocks here like any
+    /// polygon: callers that average light use [`Occluders::segment_transmittance`].
     pub fn segment_blocked(&self, p: DVec3, q: DVec3, skip: [usize; 2]) -> bool {
         let Some(tree) = &self.tree else { return false };
         let edge_tol = 1e-9 * self.scale;
-        tree.any_on_segment(p, q, |k| {
-            k != skip[0]
-                && k != skip[1]
-                && self.pieces[k].hits_segment(p, q, edge_tol)
-                && self
-                    .cutouts
-                    .get(k)
-                    .and_then(Option::as_ref)
-                    .is_none_or(|there| {
-                        // Where the segment crosses the polygon's plane.
-                        let piece = &self.pieces[k];
-                        let n = piece.patch.normal();
-                        let (dp, dq) = (n.dot(p) - piece.offset, n.dot(q) - piece.offset);
-                        let t: f64 = if dp == dq { 0.0 } else { dp / (dp - dq) };
-                        there(p + (q - p) * t.clamp(0.0, 1.0))
-                    })
-        })
+        tree.any_on_segment(p, q, |k| self.meets(k, p, q, skip, edge_tol))
+    }
+
+    /// Whether the segment p–q meets polygon `k` (not in `skip`) where it is there.
+    #[inline]
+    fn meets(&self, k: usize, p: DVec3, q: DVec3, skip: [usize; 2], edge_tol: f64) -> bool {
+        k != skip[0]
+            && k != skip[1]
+            && self.pieces[k].hits_segment(p, q, edge_tol)
+            && self
+                .cutouts
+                .get(k)
+                .and_then(Option::as_ref)
+                .is_none_or(|there| {
+                    // Where the segment crosses the polygon's plane.
+                    let piece = &self.pieces[k];
+                    let n = piece.patch.normal();
+                    let (dp, dq) = (n.dot(p) - piece.offset, n.dot(q) - piece.offset);
+                    let t: f64 = if dp == dq { 0.0 } else { dp / (dp - dq) };
+                    there(p + (q - p) * t.clamp(0.0, 1.0))
+                })
+    }
+
+    /// The share of light the segment p–q keeps: the product of the transmissions of the
+    /// polygons (other than those in `skip`) it meets, as [`Occluders::segment_blocked`]
+    /// finds them; 0 at the first opaque one, 1 when it meets none. Without glass it is
+    /// exactly `segment_blocked` as 0 or 1 (the same rays, the same cost). The product is
+    /// taken in polygon order, so the bits do not depend on the BVH's traversal; a segment
+    /// through more than [`MAX_PANES`] glass polygons counts as blocked. Allocates nothing.
+    pub fn segment_transmittance(&self, p: DVec3, q: DVec3, skip: [usize; 2]) -> f64 {
+        if self.transmission.is_empty() {
+            return if self.segment_blocked(p, q, skip) {
+                0.0
+            } else {
+                1.0
+            };
+        }
+        let Some(tree) = &self.tree else { return 1.0 };
+        let edge_tol = 1e-9 * self.scale;
+        let mut panes = [0u32; MAX_PANES];
+        let mut count = 0;
+        let blocked = tree.any_on_segment(p, q, |k| {
+            if !self.meets(k, p, q, skip, edge_tol) {
+                return false;
+            }
+            let t = self.transmission(k);
+            if t <= 0.0 || count == MAX_PANES {
+                return true;
+            }
+            panes[count] = k as u32;
+            count += 1;
+            false
+        });
+        if blocked {
+            return 0.0;
+        }
+        let panes = &mut panes[..count];
+        panes.sort_unstable();
+        panes
+            .iter()
+            .fold(1.0, |product, &k| product * self.transmission(k as usize))
     }
 
     /// The nearest polygon (other than `skip`) that the segment p → q meets, where, and from
@@ -503,13 +590,19 @@ impl Occluders {
     /// one at `(ub, vb)` of `b` (mapped as in [`Occluders::visibility_with`]), lifted
     /// [`Occluders::ray_offset`] along their normals and ignoring hits on their own polygons:
     /// `None` when the two points do not face each other (no light passes between them),
-    /// else whether the segment is free.
-    pub fn point_pair_visible(
+    /// else whether some light passes (the segment meets no opaque polygon).
+    pub fn point_pair_visible(&self, a: &Patch, b: &Patch, uv: [f64; 4]) -> Option<bool> {
+        self.point_pair_transmittance(a, b, uv).map(|t| t > 0.0)
+    }
+
+    /// [`Occluders::point_pair_visible`] as a share of light: `None` when the points do not
+    /// face each other, else the segment's [`Occluders::segment_transmittance`].
+    pub fn point_pair_transmittance(
         &self,
         a: &Patch,
         b: &Patch,
         [ua, va, ub, vb]: [f64; 4],
-    ) -> Option<bool> {
+    ) -> Option<f64> {
         let (x, _) = a.point(ua, va);
         let (y, _) = b.point(ub, vb);
         let d = y - x;
@@ -517,7 +610,7 @@ impl Occluders {
             return None;
         }
         let lift = self.ray_offset();
-        Some(!self.segment_blocked(
+        Some(self.segment_transmittance(
             x + a.normal() * lift,
             y + b.normal() * lift,
             [a.polygon(), b.polygon()],
@@ -584,9 +677,7 @@ impl Occluders {
             };
             rays += 1;
             sum_w += w;
-            if !self.segment_blocked(x + lift_a, y + lift_b, skip) {
-                sum_visible += w;
-            }
+            sum_visible += w * self.segment_transmittance(x + lift_a, y + lift_b, skip);
         }
         let fraction = if sum_w > 0.0 {
             (sum_visible / sum_w).clamp(0.0, 1.0)

@@ -524,3 +524,83 @@ fn what_is_in_front_of_a_polygon_is_found() {
         "floor beside the block"
     );
 }
+
+/// Glass (`with_transmission`): a segment keeps the product of the panes' transmissions it
+/// crosses, 0 at an opaque polygon; the conservative test still casts rays through glass,
+/// and a pair behind a pane that covers all of it sees exactly t of each other.
+#[test]
+fn glass_passes_the_product_of_its_transmissions() {
+    // Three stacked unit squares at z = 1, 2, 3: glass of t = 0.5 and 0.25, then opaque.
+    let squares = vec![
+        rect_z([0.0, 1.0], [0.0, 1.0], 1.0, true, 0),
+        rect_z([0.0, 1.0], [0.0, 1.0], 2.0, false, 1),
+        rect_z([0.0, 1.0], [0.0, 1.0], 3.0, true, 2),
+    ];
+    let occluders = Occluders::new(&squares)
+        .unwrap()
+        .with_transmission(vec![0.5, 0.25, 0.0]);
+    assert!(occluders.has_transmission());
+    let at = |z: f64| DVec3::new(0.5, 0.5, z);
+    let none = [usize::MAX; 2];
+    assert_eq!(occluders.segment_transmittance(at(0.0), at(1.5), none), 0.5);
+    assert_eq!(
+        occluders.segment_transmittance(at(0.0), at(2.5), none),
+        0.125
+    );
+    assert_eq!(
+        occluders.segment_transmittance(at(2.5), at(0.0), none),
+        0.125
+    );
+    assert_eq!(occluders.segment_transmittance(at(0.0), at(4.0), none), 0.0);
+    assert_eq!(
+        occluders.segment_transmittance(at(0.0), at(2.5), [0, 9]),
+        0.25
+    );
+    // Glass still blocks for the boolean query, whose callers do not average light.
+    assert!(occluders.segment_blocked(at(0.0), at(1.5), none));
+    let off = DVec3::new(2.0, 0.5, 0.0);
+    assert_eq!(
+        occluders.segment_transmittance(off, off + DVec3::Z * 4.0, none),
+        1.0
+    );
+    // Without glass the query is the boolean one as 0 or 1.
+    let opaque = Occluders::new(&squares)
+        .unwrap()
+        .with_transmission(vec![0.0; 3]);
+    assert!(!opaque.has_transmission());
+    assert_eq!(opaque.segment_transmittance(at(0.0), at(1.5), none), 0.0);
+    assert_eq!(opaque.segment_transmittance(off, off + DVec3::Z, none), 1.0);
+
+    // Two parallel squares 2 apart with a larger pane of t = 0.9 between them: the pair is
+    // still occludable (rays are cast) and sees 0.9 of each other, from every ray.
+    let scene = vec![
+        rect_z([0.0, 1.0], [0.0, 1.0], 0.0, true, 0),
+        rect_z([0.0, 1.0], [0.0, 1.0], 2.0, false, 1),
+        rect_z([-5.0, 6.0], [-5.0, 6.0], 1.0, true, 2),
+    ];
+    let glass = Occluders::new(&scene)
+        .unwrap()
+        .with_transmission(vec![0.0, 0.0, 0.9]);
+    let (a, b) = (glass.polygon(0), glass.polygon(1));
+    assert!(glass.can_occlude(&a, &b));
+    let v = glass.visibility(&a, &b, DEFAULT_SAMPLES, 7);
+    assert!(v.rays > 0);
+    assert!((v.fraction - 0.9).abs() < 1e-14, "{}", v.fraction);
+    // Half the pane (x < 0.5): between the open 1 and the glazed 0.9, by the same rays.
+    let half = vec![
+        scene[0].clone(),
+        scene[1].clone(),
+        rect_z([-5.0, 0.5], [-5.0, 6.0], 1.0, true, 2),
+    ];
+    let glass = Occluders::new(&half)
+        .unwrap()
+        .with_transmission(vec![0.0, 0.0, 0.9]);
+    let f = glass.visibility(&a, &b, DEFAULT_SAMPLES, 7).fraction;
+    let opaque = Occluders::new(&half).unwrap();
+    let g = opaque.visibility(&a, &b, DEFAULT_SAMPLES, 7).fraction;
+    // Each ray keeps 0.9 where the opaque pane blocked it: f = 1 − 0.1 (1 − g).
+    assert!(
+        (f - (1.0 - 0.1 * (1.0 - g))).abs() < 1e-12,
+        "{f} against {g}"
+    );
+}

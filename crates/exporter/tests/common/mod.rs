@@ -91,6 +91,7 @@ fn materials() -> Vec<Material> {
             double_sided: false,
             base_color_texture: None,
             emissive_texture: None,
+            transmission: 0.0,
         },
         Material {
             name: Some("panel".into()),
@@ -99,6 +100,7 @@ fn materials() -> Vec<Material> {
             double_sided: true,
             base_color_texture: None,
             emissive_texture: None,
+            transmission: 0.0,
         },
     ]
 }

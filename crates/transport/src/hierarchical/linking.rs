@@ -189,17 +189,16 @@ impl Linker<'_> {
                 * link.g0;
             if importance < FAINT * self.epsilon {
                 // A faint link (most pairs of distant rooms): one ray between the centroids,
-                // lifted off both surfaces, decides all or nothing.
+                // lifted off both surfaces, decides all or nothing (or glass's share).
                 let lift = self.occluders.ray_offset();
                 let (a, b) = (np.surface, nq.surface);
-                let blocked = self.occluders.segment_blocked(
+                fraction = self.occluders.segment_transmittance(
                     a.centroid + a.normal * lift,
                     b.centroid + b.normal * lift,
                     [np.polygon as usize, nq.polygon as usize],
                 );
                 c.rays_cast.fetch_add(1, Ordering::Relaxed);
                 rays = 1;
-                fraction = if blocked { 0.0 } else { 1.0 };
             } else {
                 let samples = if importance < 0.25 * self.epsilon {
                     options.samples.min(9)

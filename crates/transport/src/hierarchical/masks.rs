@@ -157,7 +157,7 @@ fn mask(
         .map(|&i| {
             let leaf = patch(&nodes[i as usize]);
             let mut rng = SplitMix64::new(pair_seed(r, i as usize));
-            let mut visible = 0u32;
+            let mut visible = 0.0;
             for k in 0..MASK_RAYS {
                 // The element's point in stratum k of a side × side grid; the partner by a
                 // stratified draw over the values, its strata shuffled against the element's
@@ -173,12 +173,13 @@ fn mask(
                 let source = patch(&nodes[partners[pick].0 as usize]);
                 let uv = [ua, va, rng.next_f64(), rng.next_f64()];
                 // Points that do not face each other exchange no light: not seen.
-                if let Some(free) = occluders.point_pair_visible(&leaf, &source, uv) {
+                // Glass passes its transmission of the ray.
+                if let Some(passed) = occluders.point_pair_transmittance(&leaf, &source, uv) {
                     rays += 1;
-                    visible += u32::from(free);
+                    visible += passed;
                 }
             }
-            f64::from(visible) / f64::from(MASK_RAYS)
+            visible / f64::from(MASK_RAYS)
         })
         .collect();
     let area = nodes[r].surface.area;
