@@ -341,3 +341,47 @@ fn a_glazed_window_passes_its_transmission_of_a_point_light() {
     eprintln!("point light: glazed / open floor light {ratio:.12}");
     assert!((ratio - f64::from(T)).abs() < 1e-9, "ratio {ratio}");
 }
+
+/// Light probes behind glass (issue 36 with 35): in the window room all light comes in
+/// through the window (the pane is black), so a pane of 0.9 scales every probe's
+/// coefficients by 0.9 — the sky the probe sees through it directly and the surfaces it
+/// lit — to within what the shadow screening resolves.
+#[test]
+fn probes_behind_glass_get_its_transmission() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let mut args = WINDOW_ROOM_SKY.to_vec();
+    args.extend(["--probes", "grid:1"]);
+    bake_json(dir.path(), "open", &room(None, &[]), &args);
+    bake_json(dir.path(), "glazed", &room(transmission(T), &[]), &args);
+    let (_, open_at, open_c, open_valid) =
+        crate::probes::probes_of(&dir.path().join("open-out.gltf"));
+    let (_, glazed_at, glazed_c, glazed_valid) =
+        crate::probes::probes_of(&dir.path().join("glazed-out.gltf"));
+    let t = f64::from(T);
+    let mut compared = 0;
+    let mut worst: f64 = 0.0;
+    for k in 0..open_valid.len() {
+        // Probes the pane moved (it is a surface the placement checks) are not the same point.
+        if open_at[3 * k..3 * k + 3] != glazed_at[3 * k..3 * k + 3]
+            || open_valid[k] != 1.0
+            || glazed_valid[k] != 1.0
+        {
+            continue;
+        }
+        compared += 1;
+        for band in 0..3 {
+            let c0 = open_c[27 * k + band];
+            assert!(c0 > 0.0, "probe {k} sees light");
+            for i in 0..9 {
+                let (o, g) = (
+                    open_c[27 * k + 3 * i + band],
+                    glazed_c[27 * k + 3 * i + band],
+                );
+                worst = worst.max((g - t * o).abs() / c0);
+            }
+        }
+    }
+    eprintln!("{compared} probes compared; worst |glazed − 0.9 open| {worst:.2e} of c0");
+    assert!(compared >= 16, "{compared} probes compared");
+    assert!(worst < 1e-2, "worst {worst}");
+}

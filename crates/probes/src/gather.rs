@@ -198,7 +198,7 @@ pub fn gather(p: DVec3, sources: &Sources) -> Gathered {
     // Polygons that hid something from `p`: most of what a room hides, its walls hide.
     let mut blockers: Vec<usize> = Vec::new();
     // The current polygon's element corners already tested: shared by up to four elements.
-    let mut corners: HashMap<[u64; 3], bool> = HashMap::new();
+    let mut corners: HashMap<[u64; 3], f64> = HashMap::new();
     let blocks = &sources.blocks;
     for (k, grid) in sources.mesh.patches.iter().enumerate() {
         if grid.elements.is_empty() || k >= occ.len() {
@@ -280,7 +280,8 @@ pub fn gather(p: DVec3, sources: &Sources) -> Gathered {
 }
 
 /// Adds the sky seen from `p` along `directions` (uniform over the sphere): those that meet
-/// no surface, front or back, each with weight 4π / their count.
+/// no surface, front or back (but glass, which passes its transmission), each with weight
+/// 4π / their count.
 fn gather_sky(p: DVec3, sky: &Sky<'_>, directions: &[DVec3], occ: &Occluders, out: &mut Gathered) {
     let weight = 4.0 * PI / directions.len() as f64;
     // Past every polygon: twice the scene's diagonal from anywhere in its box.
@@ -288,10 +289,12 @@ fn gather_sky(p: DVec3, sky: &Sky<'_>, directions: &[DVec3], occ: &Occluders, ou
     let none = [usize::MAX; 2];
     for &d in directions {
         out.rays += 1;
-        if occ.segment_blocked(p, p + d * far, none) {
+        // Glass on the way passes its transmission.
+        let passed = occ.segment_transmittance(p, p + d * far, none);
+        if passed == 0.0 {
             continue;
         }
-        let radiance = sky(d);
+        let radiance = sky(d).map(|l| l * passed);
         if radiance.iter().all(|&l| l == 0.0) {
             continue;
         }
@@ -337,37 +340,43 @@ enum Screened {
 /// `centre`, so a corner on the polygon's edge is not taken for its neighbour's) and one to
 /// its centroid. When all agree the element is taken as wholly seen or wholly hidden (what
 /// an occluder smaller than the element's spacing of these points could hide is missed, as
-/// it would be between the quadrature's own points); otherwise the quadrature casts its own.
+/// it would be between the quadrature's own points); otherwise (a ray through glass counts
+/// as its transmittance's share of a seen one) the quadrature casts its own.
 fn screen(
     p: DVec3,
     patch: &Patch,
     centre: DVec3,
     occ: &Occluders,
-    tested: &mut HashMap<[u64; 3], bool>,
+    tested: &mut HashMap<[u64; 3], f64>,
     out: &mut Gathered,
 ) -> Screened {
     let lift = patch.normal * occ.ray_offset();
     let skip = [patch.polygon(); 2];
     let corners = patch.corners();
     let centroid = corners.iter().copied().sum::<DVec3>() / corners.len() as f64;
-    let mut seen = 0;
-    for &c in corners {
+    // Each ray's transmittance: 1 seen, 0 hidden, between behind glass.
+    let mut passed = [0.0; 5];
+    for (slot, &c) in passed.iter_mut().zip(corners) {
         let key = [c.x.to_bits(), c.y.to_bits(), c.z.to_bits()];
-        let visible = *tested.entry(key).or_insert_with(|| {
+        *slot = *tested.entry(key).or_insert_with(|| {
             out.rays += 1;
             let x = c + (centre - c) * 1e-4 + lift;
-            (x - p).dot(patch.normal) < 0.0 && !occ.segment_blocked(p, x, skip)
+            if (x - p).dot(patch.normal) < 0.0 {
+                occ.segment_transmittance(p, x, skip)
+            } else {
+                0.0
+            }
         });
-        seen += usize::from(visible);
     }
     out.rays += 1;
-    if !occ.segment_blocked(p, centroid + lift, skip) {
-        seen += 1;
-    }
-    match seen {
-        0 => Screened::Hidden,
-        s if s == corners.len() + 1 => Screened::Seen,
-        s => Screened::Mixed(s as f64 / (corners.len() + 1) as f64),
+    passed[corners.len()] = occ.segment_transmittance(p, centroid + lift, skip);
+    let passed = &passed[..=corners.len()];
+    if passed.iter().all(|&t| t == 1.0) {
+        Screened::Seen
+    } else if passed.iter().all(|&t| t == 0.0) {
+        Screened::Hidden
+    } else {
+        Screened::Mixed(passed.iter().sum::<f64>() / passed.len() as f64)
     }
 }
 
@@ -524,7 +533,7 @@ impl Quadrature<'_> {
     fn cell(&mut self, u0: f64, v0: f64, size: f64, depth: u32) {
         let [c0, c1, c2, c3] = self.patch.corners;
         let n = self.patch.normal;
-        let mut points = [(DVec3::ZERO, 0.0, true); 4];
+        let mut points = [(DVec3::ZERO, 0.0, 1.0); 4];
         let mut blocked = 0;
         for (slot, (gu, gv)) in points
             .iter_mut()
@@ -545,21 +554,19 @@ impl Quadrature<'_> {
             } else {
                 0.0
             };
-            let mut seen = w > 0.0;
-            let mut w = w;
-            if let (Some(occ), true) = (self.occluders, seen) {
+            // The share of the point's light that arrives: 1 unless something is in the
+            // way; glass passes its transmission, and a cell partly behind it is split like
+            // a shadow edge.
+            let mut passed = if w > 0.0 { 1.0 } else { 0.0 };
+            if let (Some(occ), true) = (self.occluders, w > 0.0) {
                 self.rays += 1;
-                // Glass passes its transmission; a cell partly behind it is split like a
-                // shadow edge.
-                let passed =
+                passed =
                     occ.segment_transmittance(self.p, x + n * self.lift, [self.patch.polygon(); 2]);
                 if passed < 1.0 {
-                    seen = passed > 0.0;
-                    w *= passed;
                     blocked += 1;
                 }
             }
-            *slot = (d, w, seen);
+            *slot = (d, w, passed);
         }
         // The cell's corners (a hair inside it, off the polygon's edges) tell whether a
         // shadow edge crosses it between the Gauss points.
@@ -593,10 +600,11 @@ impl Quadrature<'_> {
         if mixed {
             self.unresolved += cell_solid;
         }
-        for (d, w, seen) in points {
-            if !seen {
+        for (d, w, passed) in points {
+            if passed == 0.0 {
                 continue;
             }
+            let w = w * passed;
             let y = basis(d.normalize());
             for (a, yk) in self.acc.iter_mut().zip(y) {
                 *a += yk * w;
