@@ -1048,3 +1048,243 @@ fn probes_see_the_sky_through_the_opening() {
         assert!(c(2, band).abs() < 2e-3 * c0 && c(3, band).abs() < 2e-3 * c0);
     }
 }
+
+/// Issue 35's white-walled courtyard: the same courtyard with walls of ρ = 0.8 under
+/// `--sky uniform:1`, against a reference computed another way — a radiosity solve written
+/// here, from the exact point-to-polygon form factor (Lambert's contour formula, Gauss
+/// points over each receiving patch; the courtyard is convex, so nothing is hidden), the
+/// sky as each patch's view factor to the opening, and Jacobi iterations, extrapolated to
+/// patches of size 0; the bake's floor, per square metre and in total, within 1 %.
+#[test]
+fn a_white_walled_courtyard_matches_an_independent_radiosity_solve() {
+    const WALL: f64 = 0.8;
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let scene = lit_scene(&[(floor(), [RHO; 3]), (walls(), [WALL; 3])], &[]);
+    let args = [
+        "--sky",
+        "uniform:1",
+        "--max-element-size",
+        "0.5",
+        "--refine",
+        "off",
+        "--sky-samples",
+        "4096",
+    ];
+    let report = bake_json(dir.path(), "white", &scene, &args);
+    // The bake's floor per 1 m square: the area-weighted mean of its elements' b.
+    let mut baked = vec![(0.0, 0.0); 100];
+    for e in report.elements.iter().filter(|e| is_floor(e)) {
+        let cell = |x: f64| ((x + HALF).floor() as usize).min(9);
+        let k = cell(e.centroid[0]) * 10 + cell(e.centroid[2]);
+        baked[k].0 += e.area * e.b[0];
+        baked[k].1 += e.area;
+    }
+    let baked: Vec<f64> = baked.iter().map(|(s, a)| s / a).collect();
+    // The solve converges as h² (measured: 1 m, 0.5 m and 0.25 m patches), so Richardson's
+    // (4 b(h/2) − b(h)) / 3 from 1 m and 0.5 m is the converged reference: it was within 2e-4
+    // of the 0.25 m solve everywhere (which takes 30 s here, too long for every run).
+    let coarse = courtyard_reference(1.0, WALL);
+    let fine = courtyard_reference(0.5, WALL);
+    let reference: Vec<f64> = coarse
+        .iter()
+        .zip(&fine)
+        .map(|(c, f)| (4.0 * f - c) / 3.0)
+        .collect();
+    let (mut steps, mut worst, mut total_bake, mut total_ref) = (0.0f64, 0.0f64, 0.0, 0.0);
+    for (((b, r), c), f) in baked.iter().zip(&reference).zip(&coarse).zip(&fine) {
+        steps = steps.max((c - f).abs() / f);
+        worst = worst.max((b - r).abs() / r);
+        total_bake += b;
+        total_ref += r;
+    }
+    let total = (total_bake - total_ref).abs() / total_ref;
+    eprintln!(
+        "white courtyard: reference 1 m vs 0.5 m patches {steps:.2e}; bake vs the extrapolated \
+         reference: worst square metre {worst:.2e}, floor total {total:.2e} (centre b {:.4} \
+         vs {:.4})",
+        baked[55], reference[55]
+    );
+    // A solve that changes by more between 1 m and 0.5 m is not in its h² range.
+    assert!(steps < 1e-2, "the reference's step {steps}");
+    assert!(worst < 1e-2, "worst square metre {worst}");
+    assert!(total < 5e-3, "floor total {total}");
+}
+
+/// The white courtyard's floor radiosity per 1 m square, from an independent solve on
+/// square patches of side `size` (a divisor of 1 m): b = ρ (Σ F b + L F_opening), L = 1.
+fn courtyard_reference(size: f64, wall: f64) -> Vec<f64> {
+    // Each face: a corner, two edge vectors and the inward normal; then its patches.
+    let (h, y) = (HALF, HEIGHT);
+    // Corner, the two edges, the inward normal, ρ.
+    type Face = ([f64; 3], [f64; 3], [f64; 3], [f64; 3], f64);
+    // Corners, normal, ρ, face.
+    type Patch = ([[f64; 3]; 4], [f64; 3], f64, usize);
+    let faces: [Face; 5] = [
+        (
+            [-h, 0.0, -h],
+            [2.0 * h, 0.0, 0.0],
+            [0.0, 0.0, 2.0 * h],
+            [0.0, 1.0, 0.0],
+            RHO,
+        ),
+        (
+            [-h, 0.0, -h],
+            [0.0, 0.0, 2.0 * h],
+            [0.0, y, 0.0],
+            [1.0, 0.0, 0.0],
+            wall,
+        ),
+        (
+            [h, 0.0, -h],
+            [0.0, 0.0, 2.0 * h],
+            [0.0, y, 0.0],
+            [-1.0, 0.0, 0.0],
+            wall,
+        ),
+        (
+            [-h, 0.0, -h],
+            [2.0 * h, 0.0, 0.0],
+            [0.0, y, 0.0],
+            [0.0, 0.0, 1.0],
+            wall,
+        ),
+        (
+            [-h, 0.0, h],
+            [2.0 * h, 0.0, 0.0],
+            [0.0, y, 0.0],
+            [0.0, 0.0, -1.0],
+            wall,
+        ),
+    ];
+    let add =
+        |a: [f64; 3], b: [f64; 3], t: f64| [a[0] + b[0] * t, a[1] + b[1] * t, a[2] + b[2] * t];
+    // Patches: corners (counter-clockwise or not: the formula's sign is taken out), normal,
+    // reflectance, face.
+    let mut patches: Vec<Patch> = Vec::new();
+    for (f, (o, u, v, n, rho)) in faces.iter().enumerate() {
+        let lu = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
+        let lv = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let (nu, nv) = ((lu / size).round() as usize, (lv / size).round() as usize);
+        for i in 0..nu {
+            for j in 0..nv {
+                let at = |a: usize, b: usize| {
+                    add(add(*o, *u, a as f64 / nu as f64), *v, b as f64 / nv as f64)
+                };
+                patches.push((
+                    [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)],
+                    *n,
+                    *rho,
+                    f,
+                ));
+            }
+        }
+    }
+    let opening = [[-h, y, -h], [h, y, -h], [h, y, h], [-h, y, h]];
+    // 4 × 4 Gauss–Legendre points on [0, 1].
+    let g = [
+        0.069_431_844_202_973_7,
+        0.330_009_478_207_571_9,
+        0.669_990_521_792_428_1,
+        0.930_568_155_797_026_3,
+    ];
+    let w = [
+        0.173_927_422_568_726_9,
+        0.326_072_577_431_273_1,
+        0.326_072_577_431_273_1,
+        0.173_927_422_568_726_9,
+    ];
+    let points = |c: &[[f64; 3]; 4]| -> Vec<([f64; 3], f64)> {
+        let mut out = Vec::with_capacity(16);
+        for (a, wa) in g.iter().zip(w) {
+            for (b, wb) in g.iter().zip(w) {
+                let p = add(
+                    add(
+                        c[0],
+                        [c[1][0] - c[0][0], c[1][1] - c[0][1], c[1][2] - c[0][2]],
+                        *a,
+                    ),
+                    [c[3][0] - c[0][0], c[3][1] - c[0][1], c[3][2] - c[0][2]],
+                    *b,
+                );
+                out.push((p, wa * wb));
+            }
+        }
+        out
+    };
+    let n = patches.len();
+    let mut form = vec![0.0; n * n];
+    let mut sky = vec![0.0; n];
+    for (i, (ci, ni, _, fi)) in patches.iter().enumerate() {
+        let pts = points(ci);
+        sky[i] = pts
+            .iter()
+            .map(|(p, wt)| wt * point_to_polygon(*p, *ni, &opening))
+            .sum();
+        for (j, (cj, _, _, fj)) in patches.iter().enumerate() {
+            if fi != fj {
+                form[i * n + j] = pts
+                    .iter()
+                    .map(|(p, wt)| wt * point_to_polygon(*p, *ni, cj))
+                    .sum();
+            }
+        }
+    }
+    let mut b: Vec<f64> = (0..n).map(|i| patches[i].2 * sky[i]).collect();
+    for _ in 0..400 {
+        let next: Vec<f64> = (0..n)
+            .map(|i| patches[i].2 * (sky[i] + (0..n).map(|j| form[i * n + j] * b[j]).sum::<f64>()))
+            .collect();
+        let change = next
+            .iter()
+            .zip(&b)
+            .map(|(a, c)| (a - c).abs())
+            .fold(0.0, f64::max);
+        b = next;
+        if change < 1e-12 {
+            break;
+        }
+    }
+    // Per 1 m square of floor: the mean of its patches (all of one area).
+    let mut squares = vec![(0.0, 0.0); 100];
+    for (k, (c, _, _, f)) in patches.iter().enumerate() {
+        if *f == 0 {
+            let x = (c[0][0] + c[2][0]) / 2.0;
+            let z = (c[0][2] + c[2][2]) / 2.0;
+            let cell = |t: f64| ((t + HALF).floor() as usize).min(9);
+            let s = &mut squares[cell(x) * 10 + cell(z)];
+            s.0 += b[k];
+            s.1 += 1.0;
+        }
+    }
+    squares.iter().map(|(s, c)| s / c).collect()
+}
+
+/// The form factor from a point with unit normal `n` to a convex polygon wholly in front of
+/// it (Lambert's contour formula): `|Σ_edges θ_e n · (r_e × r_e+1) / |r_e × r_e+1|| / 2π`,
+/// r the corners relative to the point and θ_e the angle each edge subtends.
+fn point_to_polygon(x: [f64; 3], n: [f64; 3], polygon: &[[f64; 3]]) -> f64 {
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let mut sum = 0.0;
+    for k in 0..polygon.len() {
+        let a = sub(polygon[k], x);
+        let b = sub(polygon[(k + 1) % polygon.len()], x);
+        let c = cross(a, b);
+        let length = dot(c, c).sqrt();
+        if length == 0.0 {
+            continue;
+        }
+        let angle = (dot(a, b) / (dot(a, a) * dot(b, b)).sqrt())
+            .clamp(-1.0, 1.0)
+            .acos();
+        sum += angle * dot(n, c) / length;
+    }
+    sum.abs() / (2.0 * PI)
+}
