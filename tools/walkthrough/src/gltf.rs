@@ -1,5 +1,6 @@
-//! glTF 2.0 writer for a [`Floor`]: `.gltf` + `.bin` beside it, or a `.glb`, chosen by the
-//! extension (the approach of `tools/fixtures/src/gltf.rs`).
+//! glTF 2.0 writer for a [`Floor`] (an office floor or an atrium): `.gltf` + `.bin` beside
+//! it, or a `.glb`, chosen by the extension (the approach of `tools/fixtures/src/gltf.rs`).
+//! A floor with a sun gets a `KHR_lights_punctual` directional light of [`SUN_LUX`].
 //!
 //! One node and one mesh per room; one primitive per surface of the room (floor, walls, ceiling,
 //! light panels, desk, cabinet) with its own material. Each primitive is indexed triangles
@@ -19,6 +20,28 @@ const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const TRIANGLES: u32 = 4;
 const EMISSIVE_STRENGTH: &str = "KHR_materials_emissive_strength";
+const LIGHTS: &str = "KHR_lights_punctual";
+/// The sun's illuminance (lux) of a scene with one ([`Floor::sun`]).
+pub const SUN_LUX: f64 = 100.0;
+
+/// The unit quaternion (x, y, z, w) that turns −Z onto the unit vector `d`.
+fn rotation_to(d: [f64; 3]) -> [f64; 4] {
+    let a = [0.0, 0.0, -1.0];
+    let dot = a[2] * d[2];
+    if dot < -1.0 + 1e-12 {
+        // d = +Z: half a turn about y.
+        return [0.0, 1.0, 0.0, 0.0];
+    }
+    // q = (a × d, 1 + a · d), normalised.
+    let c = [
+        a[1] * d[2] - a[2] * d[1],
+        a[2] * d[0] - a[0] * d[2],
+        a[0] * d[1] - a[1] * d[0],
+    ];
+    let q = [c[0], c[1], c[2], 1.0 + dot];
+    let len = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+    q.map(|v| v / len)
+}
 
 /// The files of `floor` written as `out` (`.gltf` or `.glb`): (path, contents).
 pub fn files(floor: &Floor, out: &Path) -> Result<Vec<(std::path::PathBuf, Vec<u8>)>> {
@@ -211,24 +234,46 @@ fn document(floor: &Floor, bin: &Binary, uri: Option<&str>) -> Value {
         nodes.push(json!({ "name": room.name, "mesh": r }));
     }
     let materials: Vec<Value> = Surface::ALL.iter().map(|s| material(*s)).collect();
+    let (generator, scene_name) = match &floor.title {
+        Some((what, name)) => (what.clone(), name.clone()),
+        None => (
+            format!(
+                "office {} rooms of {} m × {} m × {} m",
+                floor.rooms, floor.room_size, floor.room_size, floor.height
+            ),
+            format!("office-{}", floor.rooms),
+        ),
+    };
+    let mut extensions_used = vec![EMISSIVE_STRENGTH];
+    if let Some(d) = floor.sun {
+        // A directional light shines along its node's −Z: the rotation taking −Z to `d`.
+        nodes.push(json!({
+            "name": "sun",
+            "rotation": rotation_to(d),
+            "extensions": { LIGHTS: { "light": 0 } },
+        }));
+        extensions_used.push(LIGHTS);
+    }
     let mut root = json!({
         "asset": {
             "version": "2.0",
-            "generator": format!(
-                "bake-walkthrough (tools/walkthrough): office {} rooms of {} m × {} m × {} m",
-                floor.rooms, floor.room_size, floor.room_size, floor.height
-            ),
+            "generator": format!("bake-walkthrough (tools/walkthrough): {generator}"),
         },
         "scene": 0,
-        "scenes": [{ "name": format!("office-{}", floor.rooms), "nodes": (0..nodes.len()).collect::<Vec<_>>() }],
+        "scenes": [{ "name": scene_name, "nodes": (0..nodes.len()).collect::<Vec<_>>() }],
         "nodes": nodes,
         "meshes": meshes,
         "materials": materials,
         "accessors": accessors,
         "bufferViews": buffer_views,
         "buffers": [buffer],
-        "extensionsUsed": [EMISSIVE_STRENGTH],
+        "extensionsUsed": extensions_used,
     });
+    if floor.sun.is_some() {
+        root["extensions"] = json!({
+            LIGHTS: { "lights": [{ "name": "sun", "type": "directional", "intensity": SUN_LUX }] }
+        });
+    }
     // Same key order whatever serde_json features other crates switch on.
     root.sort_all_objects();
     root

@@ -139,6 +139,11 @@ pub struct Floor {
     pub room_size: f64,
     pub height: f64,
     pub room_list: Vec<Room>,
+    /// What the scene is, for the glTF's generator line and scene name (`None`: the office
+    /// floor's own).
+    pub title: Option<(String, String)>,
+    /// A sun: a directional light travelling along this unit direction.
+    pub sun: Option<[f64; 3]>,
 }
 
 impl Floor {
@@ -168,14 +173,14 @@ fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
 }
 
 /// 1/1024 m: exact in f32 for every coordinate of a floor under 16 km.
-fn snap(x: f64) -> f64 {
+pub(crate) fn snap(x: f64) -> f64 {
     (x * 1024.0).round() / 1024.0
 }
 
 /// An axis-aligned rectangle in the plane `axis = at`, facing `+axis` (`positive`) or `−axis`,
 /// spanning `a` and `b` along the next two axes in cyclic order (x → y, z; y → z, x; z → x, y),
 /// counter-clockwise seen from the side it faces.
-fn rect(axis: usize, positive: bool, at: f64, a: [f64; 2], b: [f64; 2]) -> Quad {
+pub(crate) fn rect(axis: usize, positive: bool, at: f64, a: [f64; 2], b: [f64; 2]) -> Quad {
     let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
     let corner = |s: f64, t: f64| {
         let mut p = [0.0; 3];
@@ -403,6 +408,8 @@ pub fn office_with(
         room_size,
         height,
         room_list,
+        title: None,
+        sun: None,
     })
 }
 
