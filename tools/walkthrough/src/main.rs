@@ -105,15 +105,10 @@ fn run(cli: Cli) -> Result<()> {
             open_plan,
             out,
         } => {
-            if !(element_size.is_finite() && element_size > 0.0) {
-                anyhow::bail!("--element-size must be a positive number, got {element_size}");
-            }
+            check_element_size(element_size)?;
             let floor = office::office_with(rooms, room_size, height, open_plan)
                 .map_err(anyhow::Error::msg)?;
-            if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-                std::fs::create_dir_all(dir)
-                    .with_context(|| format!("creating {}", dir.display()))?;
-            }
+            create_parent(&out)?;
             let written = gltf::write(&floor, &out)?;
             println!(
                 "{}: {rooms} rooms, {} quads, {} elements at {element_size} m ({})",
@@ -139,9 +134,7 @@ fn run(cli: Cli) -> Result<()> {
             element_size,
             out,
         } => {
-            if !(element_size.is_finite() && element_size > 0.0) {
-                anyhow::bail!("--element-size must be a positive number, got {element_size}");
-            }
+            check_element_size(element_size)?;
             let scene = atrium::atrium(&atrium::Atrium {
                 courtyard,
                 gallery,
@@ -152,10 +145,7 @@ fn run(cli: Cli) -> Result<()> {
                 segments,
             })
             .map_err(anyhow::Error::msg)?;
-            if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-                std::fs::create_dir_all(dir)
-                    .with_context(|| format!("creating {}", dir.display()))?;
-            }
+            create_parent(&out)?;
             gltf::write(&scene, &out)?;
             println!(
                 "{}: atrium, {} quads, {} elements at {element_size} m",
@@ -167,4 +157,20 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Bench(args) => bench::run(args),
     }
+}
+
+/// `--element-size` must be a positive number.
+fn check_element_size(element_size: f64) -> Result<()> {
+    if !(element_size.is_finite() && element_size > 0.0) {
+        anyhow::bail!("--element-size must be a positive number, got {element_size}");
+    }
+    Ok(())
+}
+
+/// Creates the folder `out` is written into.
+fn create_parent(out: &std::path::Path) -> Result<()> {
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    Ok(())
 }
