@@ -176,21 +176,13 @@ fn the_reference_view_factor_is_0_554_at_the_centre() {
 fn a_black_walled_courtyard_matches_the_view_factor_to_its_opening() {
     let dir = tempfile::tempdir().expect("a temporary directory");
     let report = bake_courtyard(dir.path(), "courtyard", false, "0.5", "16384");
-    let floor: Vec<_> = report.elements.iter().filter(|e| is_floor(e)).collect();
-    assert_eq!(floor.len(), 400, "a 20 × 20 grid on the floor");
-    let (mut sum_sq, mut area, mut worst) = (0.0, 0.0, 0.0f64);
-    for e in &floor {
-        let reference = RHO * element_opening(e.centroid, e.area);
-        let relative = (e.b[0] - reference) / reference;
-        sum_sq += e.area * relative * relative;
-        area += e.area;
-        worst = worst.max(relative.abs());
+    let (rms, worst) = floor_against_the_opening(&report);
+    for e in report.elements.iter().filter(|e| is_floor(e)) {
         // The sky is grey; the part of b from it is all of b here.
         assert_eq!(e.b[0], e.b[2]);
         let sky = e.sky.expect("per-element sky");
         assert!((sky[0] - e.b[0]).abs() <= 1e-12 * e.b[0]);
     }
-    let rms = (sum_sq / area).sqrt();
     eprintln!("courtyard: RMS {rms:.2e}, worst {worst:.2e} relative to the closed form");
     assert!(rms <= 5e-3, "RMS {rms:.2e} of the closed form");
     assert!(worst <= 2e-2, "worst {worst:.2e} of the closed form");
@@ -1049,6 +1041,23 @@ fn probes_see_the_sky_through_the_opening() {
     }
 }
 
+/// The black courtyard's floor (a 20 × 20 grid) against its closed form, ρ × each
+/// element's area-averaged view factor to the opening: the area-weighted RMS and the worst
+/// of the relative errors.
+fn floor_against_the_opening(report: &bake_job::report::Report) -> (f64, f64) {
+    let floor: Vec<_> = report.elements.iter().filter(|e| is_floor(e)).collect();
+    assert_eq!(floor.len(), 400, "a 20 × 20 grid on the floor");
+    let (mut sum_sq, mut area, mut worst) = (0.0, 0.0, 0.0f64);
+    for e in &floor {
+        let reference = RHO * element_opening(e.centroid, e.area);
+        let relative = (e.b[0] - reference) / reference;
+        sum_sq += e.area * relative * relative;
+        area += e.area;
+        worst = worst.max(relative.abs());
+    }
+    ((sum_sq / area).sqrt(), worst)
+}
+
 /// Issue 35's white-walled courtyard: the same courtyard with walls of ρ = 0.8 under
 /// `--sky uniform:1`, against a reference computed another way — a radiosity solve written
 /// here, from the exact point-to-polygon form factor (Lambert's contour formula, Gauss
@@ -1287,4 +1296,38 @@ fn point_to_polygon(x: [f64; 3], n: [f64; 3], polygon: &[[f64; 3]]) -> f64 {
         sum += angle * dot(n, c) / length;
     }
     sum.abs() / (2.0 * PI)
+}
+
+/// A map sky where things block it, element by element (issue 35): a map of radiance 1 above
+/// the horizon and 0 below lights the black courtyard's floor exactly as `uniform:1` with a
+/// black ground does, so each floor element's b is 0.5 × its area-averaged view factor to
+/// the opening — here through the map's own sampling (its texel distribution joins the
+/// balance heuristic), not the uniform sky's.
+#[test]
+fn a_map_sky_through_an_opening_matches_the_closed_form_per_element() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let map = dir.path().join("upper.exr");
+    // 32 rows: rows 0–15 above the horizon (elevations 90° down to 0°), 16–31 below.
+    write_exr_map(
+        &map,
+        64,
+        32,
+        |_, r| if r < 16 { [1.0; 3] } else { [0.0; 3] },
+    );
+    let sky = format!("map:{}", map.display());
+    let args = [
+        "--sky",
+        &sky,
+        "--max-element-size",
+        "0.5",
+        "--refine",
+        "off",
+        "--sky-samples",
+        "4096",
+    ];
+    let report = bake_json(dir.path(), "mapped", &courtyard(false), &args);
+    let (rms, worst) = floor_against_the_opening(&report);
+    eprintln!("map sky in the courtyard: RMS {rms:.2e}, worst {worst:.2e} of the closed form");
+    assert!(rms <= 5e-3, "RMS {rms:.2e}");
+    assert!(worst <= 2e-2, "worst {worst:.2e}");
 }
