@@ -10,6 +10,7 @@
 use crate::common;
 
 use common::{bake_json, lit_scene};
+use glam::DVec3;
 use serde_json::Value;
 use std::f64::consts::PI;
 
@@ -1122,73 +1123,62 @@ fn a_white_walled_courtyard_matches_an_independent_radiosity_solve() {
 /// The white courtyard's floor radiosity per 1 m square, from an independent solve on
 /// square patches of side `size` (a divisor of 1 m): b = ρ (Σ F b + L F_opening), L = 1.
 fn courtyard_reference(size: f64, wall: f64) -> Vec<f64> {
-    // Each face: a corner, two edge vectors and the inward normal; then its patches.
     let (h, y) = (HALF, HEIGHT);
-    // Corner, the two edges, the inward normal, ρ.
-    type Face = ([f64; 3], [f64; 3], [f64; 3], [f64; 3], f64);
-    // Corners, normal, ρ, face.
-    type Patch = ([[f64; 3]; 4], [f64; 3], f64, usize);
-    let faces: [Face; 5] = [
+    let v = DVec3::new;
+    // Each face: a corner, its two edges, the inward normal, ρ.
+    let faces = [
         (
-            [-h, 0.0, -h],
-            [2.0 * h, 0.0, 0.0],
-            [0.0, 0.0, 2.0 * h],
-            [0.0, 1.0, 0.0],
+            v(-h, 0.0, -h),
+            v(2.0 * h, 0.0, 0.0),
+            v(0.0, 0.0, 2.0 * h),
+            DVec3::Y,
             RHO,
         ),
         (
-            [-h, 0.0, -h],
-            [0.0, 0.0, 2.0 * h],
-            [0.0, y, 0.0],
-            [1.0, 0.0, 0.0],
+            v(-h, 0.0, -h),
+            v(0.0, 0.0, 2.0 * h),
+            v(0.0, y, 0.0),
+            DVec3::X,
             wall,
         ),
         (
-            [h, 0.0, -h],
-            [0.0, 0.0, 2.0 * h],
-            [0.0, y, 0.0],
-            [-1.0, 0.0, 0.0],
+            v(h, 0.0, -h),
+            v(0.0, 0.0, 2.0 * h),
+            v(0.0, y, 0.0),
+            DVec3::NEG_X,
             wall,
         ),
         (
-            [-h, 0.0, -h],
-            [2.0 * h, 0.0, 0.0],
-            [0.0, y, 0.0],
-            [0.0, 0.0, 1.0],
+            v(-h, 0.0, -h),
+            v(2.0 * h, 0.0, 0.0),
+            v(0.0, y, 0.0),
+            DVec3::Z,
             wall,
         ),
         (
-            [-h, 0.0, h],
-            [2.0 * h, 0.0, 0.0],
-            [0.0, y, 0.0],
-            [0.0, 0.0, -1.0],
+            v(-h, 0.0, h),
+            v(2.0 * h, 0.0, 0.0),
+            v(0.0, y, 0.0),
+            DVec3::NEG_Z,
             wall,
         ),
     ];
-    let add =
-        |a: [f64; 3], b: [f64; 3], t: f64| [a[0] + b[0] * t, a[1] + b[1] * t, a[2] + b[2] * t];
-    // Patches: corners (counter-clockwise or not: the formula's sign is taken out), normal,
-    // reflectance, face.
-    let mut patches: Vec<Patch> = Vec::new();
-    for (f, (o, u, v, n, rho)) in faces.iter().enumerate() {
-        let lu = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
-        let lv = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        let (nu, nv) = ((lu / size).round() as usize, (lv / size).round() as usize);
+    // Patches: corners (either winding: the formula's sign is taken out), normal, ρ, face.
+    let mut patches: Vec<([DVec3; 4], DVec3, f64, usize)> = Vec::new();
+    for (f, &(o, du, dv, n, rho)) in faces.iter().enumerate() {
+        let (nu, nv) = (
+            (du.length() / size).round() as usize,
+            (dv.length() / size).round() as usize,
+        );
+        let at = |a: usize, b: usize| o + du * (a as f64 / nu as f64) + dv * (b as f64 / nv as f64);
         for i in 0..nu {
             for j in 0..nv {
-                let at = |a: usize, b: usize| {
-                    add(add(*o, *u, a as f64 / nu as f64), *v, b as f64 / nv as f64)
-                };
-                patches.push((
-                    [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)],
-                    *n,
-                    *rho,
-                    f,
-                ));
+                let corners = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
+                patches.push((corners, n, rho, f));
             }
         }
     }
-    let opening = [[-h, y, -h], [h, y, -h], [h, y, h], [-h, y, h]];
+    let opening = [v(-h, y, -h), v(h, y, -h), v(h, y, h), v(-h, y, h)];
     // 4 × 4 Gauss–Legendre points on [0, 1].
     let g = [
         0.069_431_844_202_973_7,
@@ -1202,20 +1192,11 @@ fn courtyard_reference(size: f64, wall: f64) -> Vec<f64> {
         0.326_072_577_431_273_1,
         0.173_927_422_568_726_9,
     ];
-    let points = |c: &[[f64; 3]; 4]| -> Vec<([f64; 3], f64)> {
+    let points = |c: &[DVec3; 4]| -> Vec<(DVec3, f64)> {
         let mut out = Vec::with_capacity(16);
         for (a, wa) in g.iter().zip(w) {
             for (b, wb) in g.iter().zip(w) {
-                let p = add(
-                    add(
-                        c[0],
-                        [c[1][0] - c[0][0], c[1][1] - c[0][1], c[1][2] - c[0][2]],
-                        *a,
-                    ),
-                    [c[3][0] - c[0][0], c[3][1] - c[0][1], c[3][2] - c[0][2]],
-                    *b,
-                );
-                out.push((p, wa * wb));
+                out.push((c[0] + (c[1] - c[0]) * *a + (c[3] - c[0]) * *b, wa * wb));
             }
         }
         out
@@ -1257,10 +1238,9 @@ fn courtyard_reference(size: f64, wall: f64) -> Vec<f64> {
     let mut squares = vec![(0.0, 0.0); 100];
     for (k, (c, _, _, f)) in patches.iter().enumerate() {
         if *f == 0 {
-            let x = (c[0][0] + c[2][0]) / 2.0;
-            let z = (c[0][2] + c[2][2]) / 2.0;
+            let centre = (c[0] + c[2]) / 2.0;
             let cell = |t: f64| ((t + HALF).floor() as usize).min(9);
-            let s = &mut squares[cell(x) * 10 + cell(z)];
+            let s = &mut squares[cell(centre.x) * 10 + cell(centre.z)];
             s.0 += b[k];
             s.1 += 1.0;
         }
@@ -1271,29 +1251,16 @@ fn courtyard_reference(size: f64, wall: f64) -> Vec<f64> {
 /// The form factor from a point with unit normal `n` to a convex polygon wholly in front of
 /// it (Lambert's contour formula): `|Σ_edges θ_e n · (r_e × r_e+1) / |r_e × r_e+1|| / 2π`,
 /// r the corners relative to the point and θ_e the angle each edge subtends.
-fn point_to_polygon(x: [f64; 3], n: [f64; 3], polygon: &[[f64; 3]]) -> f64 {
-    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let cross = |a: [f64; 3], b: [f64; 3]| {
-        [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ]
-    };
+fn point_to_polygon(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
     let mut sum = 0.0;
-    for k in 0..polygon.len() {
-        let a = sub(polygon[k], x);
-        let b = sub(polygon[(k + 1) % polygon.len()], x);
-        let c = cross(a, b);
-        let length = dot(c, c).sqrt();
+    for (k, &corner) in polygon.iter().enumerate() {
+        let (a, b) = (corner - x, polygon[(k + 1) % polygon.len()] - x);
+        let c = a.cross(b);
+        let length = c.length();
         if length == 0.0 {
             continue;
         }
-        let angle = (dot(a, b) / (dot(a, a) * dot(b, b)).sqrt())
-            .clamp(-1.0, 1.0)
-            .acos();
-        sum += angle * dot(n, c) / length;
+        sum += a.angle_between(b) * n.dot(c) / length;
     }
     sum.abs() / (2.0 * PI)
 }

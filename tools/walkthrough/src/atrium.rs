@@ -15,7 +15,7 @@
 //!
 //! Coordinates are snapped to 1/1024 m (exact in f32), as the office floor's.
 
-use crate::office::{normal, rect, snap, Floor, Quad, Room, Rooms, Surface};
+use crate::office::{normal, rect, snap, Floor, Quad, Room, Rooms, Surface, X, Y, Z};
 
 /// Slab thickness between storeys (m).
 pub const SLAB: f64 = 0.25;
@@ -57,10 +57,6 @@ pub const SUN: [f64; 3] = [
     -0.866_025_403_784_438_6,
     -0.353_553_390_593_273_8,
 ];
-
-const X: usize = 0;
-const Y: usize = 1;
-const Z: usize = 2;
 
 /// The atrium as a [`Floor`] (one "room" per storey), with its sun.
 pub fn atrium(a: &Atrium) -> Result<Floor, String> {

@@ -208,9 +208,10 @@ pub(crate) fn rect(axis: usize, positive: bool, at: f64, a: [f64; 2], b: [f64; 2
     }
 }
 
-const X: usize = 0;
-const Y: usize = 1;
-const Z: usize = 2;
+/// Axis indices for [`rect`].
+pub(crate) const X: usize = 0;
+pub(crate) const Y: usize = 1;
+pub(crate) const Z: usize = 2;
 
 /// A box standing on the floor: top and four sides facing out, no bottom.
 fn open_box(x: [f64; 2], z: [f64; 2], height: f64) -> Vec<Quad> {
